@@ -1,0 +1,59 @@
+# SPLITTER: the two set-up commands are `make demo` and `make test`.
+# Both create .venv when missing, install the pinned dependencies and the
+# workspace packages (only when requirements.txt or a package's setup files
+# changed), export the ROS environment and run.
+
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.splitter-installed
+PACKAGES := splitter_msgs_py splitter_sim splitter_mpc splitter_ik splitter_bringup
+PKG_DIRS := $(addprefix splitter_ws/src/,$(PACKAGES))
+PKG_SETUP := $(foreach p,$(PKG_DIRS),$(p)/setup.py $(p)/setup.cfg $(p)/package.xml)
+OUT ?= runs/demo
+
+# ROS environment of every process make starts (DESIGN.md sections 6 and 8).
+export AMENT_PREFIX_PATH := $(abspath $(VENV))
+export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
+export FASTRTPS_DEFAULT_PROFILES_FILE := $(abspath splitter_ws/src/splitter_msgs_py/splitter_msgs_py/dds/fastdds_loopback.xml)
+export FASTDDS_DEFAULT_PROFILES_FILE := $(FASTRTPS_DEFAULT_PROFILES_FILE)
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DOMAIN_ID ?= 42
+export MPLBACKEND := Agg
+export PYTHONDONTWRITEBYTECODE := 1
+
+.PHONY: demo test lint install clean colcon bench
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): requirements.txt $(PKG_SETUP) | $(BIN)/python
+	$(BIN)/pip install --quiet --disable-pip-version-check -r requirements.txt
+	$(BIN)/pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
+		$(foreach d,$(PKG_DIRS),-e $(d))
+	touch $(STAMP)
+
+install: $(STAMP)
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/hadolint docker/Dockerfile
+
+test: lint
+	$(BIN)/python -m pytest
+
+demo: $(STAMP)
+	$(BIN)/splitter run lunar_jumping --out $(OUT)
+
+bench: $(STAMP)
+	$(BIN)/splitter bench sim --json
+	$(BIN)/splitter bench mpc --json
+	$(BIN)/splitter bench bag --json
+
+colcon: $(STAMP)
+	cd splitter_ws && ../$(BIN)/colcon build --symlink-install
+
+clean:
+	rm -rf $(VENV) splitter_ws/build splitter_ws/install splitter_ws/log

@@ -1,0 +1,1 @@
+"""SPLITTER scenarios, launcher, runs, benchmarks and CLI."""

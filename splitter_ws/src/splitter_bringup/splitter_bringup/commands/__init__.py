@@ -1,0 +1,1 @@
+"""Subcommands of the ``splitter`` command that belong to the bringup package."""

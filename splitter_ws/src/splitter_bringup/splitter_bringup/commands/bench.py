@@ -1,0 +1,18 @@
+"""``splitter bench {sim,mpc,bag}``: benchmarks that print figures (JSON with --json)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from splitter_bringup.cli import dispatch
+
+BENCHMARKS = {
+    "sim": ("splitter_sim.bench", "real-time factor of the bare simulator"),
+    "mpc": ("splitter_mpc.bench", "MPC solve times against a plain Opti+IPOPT baseline"),
+    "bag": ("splitter_msgs_py.bench", "sustained bag write rate without loss"),
+}
+
+
+def run_argv(argv: Sequence[str]) -> int:
+    """Run one benchmark: ``splitter bench NAME [options]``."""
+    return dispatch("splitter bench", argv, BENCHMARKS, "Benchmarks that print figures.")

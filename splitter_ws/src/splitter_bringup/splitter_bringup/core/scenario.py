@@ -1,0 +1,193 @@
+"""Scenario files: what a run sets up, which variants it compares, and the paper's numbers.
+
+ROS-free. A scenario is a YAML file in ``splitter_bringup/scenarios`` (or any
+path). ``variants`` maps a variant name to overrides deep-merged over the base;
+the first variant is the main one (the one a plain ``splitter run`` reports
+against the paper).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from splitter_sim.core.model import gravity_from_name
+
+
+class ScenarioError(ValueError):
+    """A scenario file that is missing, malformed or out of range (names the field)."""
+
+
+@dataclass(frozen=True)
+class JumpSpec:
+    """A planned jump: thrust ``force_n`` (world frame) for ``duration_s`` from ``time_s``."""
+
+    time_s: float  # [s]
+    force_n: tuple[float, float, float]  # [N] world frame
+    duration_s: float  # [s]
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """Inertial-morphing MPC settings of a scenario (paper Tables I and II)."""
+
+    enabled: bool = True
+    w_ref_rad_s: tuple[float, float, float] = (0.0, 1.0, 0.0)  # [rad/s]
+    q_w: tuple[float, float, float] = (100.0, 100.0, 100.0)
+    r: tuple[float, float, float] = (0.01, 1.0, 1.0)
+    q_t: tuple[float, float, float] = (100.0, 10.0, 100.0)
+    q_q: float = 0.0
+    q_tq: float = 0.0
+    # "initial": hold the initial attitude; "integrate_w_ref": attitude reference
+    # propagated from the initial attitude with w_ref (the paper's "nonconstant"
+    # reference "calculated based on the angular velocity reference").
+    attitude_reference: str = "integrate_w_ref"
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A complete run description."""
+
+    name: str
+    description: str
+    variant: str
+    duration_s: float  # [s]
+    gravity_m_s2: float  # [m/s^2]
+    sim_dt_s: float  # [s]
+    initial_angular_velocity_rad_s: NDArray[np.float64]  # [rad/s] body frame
+    initial_orientation_euler_deg: NDArray[np.float64]  # [deg] roll, pitch, yaw (xyz)
+    initial_position_m: NDArray[np.float64]  # [m] world frame, centre of mass
+    initial_velocity_m_s: NDArray[np.float64]  # [m/s] world frame
+    initial_radii_m: NDArray[np.float64]  # [m] r_x, r_y, r_z
+    controller: ControllerSpec
+    jumps: tuple[JumpSpec, ...]
+    ground_contact: bool
+    paper: Mapping[str, Any] = field(default_factory=dict)
+    variants: tuple[str, ...] = ()
+    raw: Mapping[str, Any] = field(default_factory=dict)
+
+
+def scenario_dir() -> Path:
+    """Folder of the scenario files shipped with the project."""
+    return Path(str(resources.files("splitter_bringup") / "scenarios"))
+
+
+def available_scenarios() -> list[str]:
+    """Names of the shipped scenarios."""
+    return sorted(p.stem for p in scenario_dir().glob("*.yaml"))
+
+
+def _deep_merge(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for key, value in override.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            out[key] = _deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def _vector(data: Mapping[str, Any], key: str, default: list[float] | None = None) -> NDArray:
+    value = data.get(key, default)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{key}: expected 3 numbers, got {value!r}") from exc
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ScenarioError(f"{key}: expected 3 finite numbers, got {value!r}")
+    return arr
+
+
+def _positive(data: Mapping[str, Any], key: str, default: float | None = None) -> float:
+    value = data.get(key, default)
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{key}: expected a number, got {value!r}") from exc
+    if not (math.isfinite(number) and number > 0.0):
+        raise ScenarioError(f"{key}: must be finite and > 0, got {value!r}")
+    return number
+
+
+def load_scenario(name_or_path: str | Path, variant: str | None = None) -> Scenario:
+    """Load a shipped scenario by name, or a YAML file by path, with one variant applied."""
+    path = Path(name_or_path)
+    if path.suffix not in (".yaml", ".yml"):
+        path = scenario_dir() / f"{name_or_path}.yaml"
+    if not path.is_file():
+        raise ScenarioError(
+            f"scenario {name_or_path!r} not found; shipped: {', '.join(available_scenarios())}"
+        )
+    with path.open(encoding="utf-8") as stream:
+        data = yaml.safe_load(stream)
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{path}: top level must be a mapping")
+    variants: dict[str, Any] = data.pop("variants", None) or {"default": {}}
+    if not isinstance(variants, dict):
+        raise ScenarioError(f"{path}: variants must be a mapping of name -> overrides")
+    chosen = variant or next(iter(variants))
+    if chosen not in variants:
+        raise ScenarioError(f"variant {chosen!r} not in {list(variants)}")
+    merged = _deep_merge(data, variants[chosen] or {})
+    return _from_dict(merged, chosen, tuple(variants), path.stem)
+
+
+def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem: str) -> Scenario:
+    initial = d.get("initial", {}) or {}
+    ctrl = d.get("controller", {}) or {}
+    try:
+        gravity = gravity_from_name(d.get("gravity", "zero"))
+    except ValueError as exc:
+        raise ScenarioError(f"gravity: {exc}") from exc
+    controller = ControllerSpec(
+        enabled=bool(ctrl.get("enabled", True)),
+        w_ref_rad_s=tuple(_vector(ctrl, "w_ref_rad_s", [0.0, 1.0, 0.0])),
+        q_w=tuple(_vector(ctrl, "q_w", [100.0, 100.0, 100.0])),
+        r=tuple(_vector(ctrl, "r", [0.01, 1.0, 1.0])),
+        q_t=tuple(_vector(ctrl, "q_t", [100.0, 10.0, 100.0])),
+        q_q=float(ctrl.get("q_q", 0.0)),
+        q_tq=float(ctrl.get("q_tq", 0.0)),
+        attitude_reference=str(ctrl.get("attitude_reference", "integrate_w_ref")),
+    )
+    if controller.attitude_reference not in ("initial", "integrate_w_ref"):
+        raise ScenarioError("controller.attitude_reference: use 'initial' or 'integrate_w_ref'")
+    jumps = []
+    for i, j in enumerate(d.get("jumps", []) or []):
+        force = _vector(j, "force_n")
+        jumps.append(
+            JumpSpec(
+                time_s=float(j.get("time_s", 0.0)),
+                force_n=(float(force[0]), float(force[1]), float(force[2])),
+                duration_s=_positive(j, "duration_s"),
+            )
+        )
+        if jumps[-1].time_s < 0.0:
+            raise ScenarioError(f"jumps[{i}].time_s must be >= 0")
+    return Scenario(
+        name=str(d.get("name", stem)),
+        description=str(d.get("description", "")),
+        variant=variant,
+        duration_s=_positive(d, "duration_s"),
+        gravity_m_s2=gravity,
+        sim_dt_s=_positive(d, "sim_dt_s", 0.005),
+        initial_angular_velocity_rad_s=_vector(initial, "angular_velocity_rad_s", [0.0] * 3),
+        initial_orientation_euler_deg=_vector(initial, "orientation_euler_deg", [0.0] * 3),
+        initial_position_m=_vector(initial, "position_m", [0.0, 0.0, 0.0]),
+        initial_velocity_m_s=_vector(initial, "velocity_m_s", [0.0] * 3),
+        initial_radii_m=_vector(initial, "radii_m", [2.8, 0.2, 0.2]),
+        controller=controller,
+        jumps=tuple(jumps),
+        ground_contact=bool(d.get("ground_contact", False)),
+        paper=dict(d.get("paper", {}) or {}),
+        variants=variants,
+        raw=d,
+    )

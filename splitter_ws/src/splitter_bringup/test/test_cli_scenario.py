@@ -1,0 +1,48 @@
+"""The ``splitter`` command and the scenario files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splitter_bringup import cli
+from splitter_bringup.core.scenario import ScenarioError, available_scenarios, load_scenario
+
+
+def test_help_lists_installed_subcommands(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "bench" in out
+    for name in cli.available():
+        assert name in out
+
+
+def test_unknown_subcommand_is_an_error() -> None:
+    with pytest.raises(SystemExit) as info:
+        cli.main(["no-such-command"])
+    assert info.value.code == 2
+
+
+def test_shipped_scenarios_load_with_paper_numbers() -> None:
+    assert {"spin_stabilization", "orientation_tracking", "lunar_jumping"} <= set(
+        available_scenarios()
+    )
+    spin = load_scenario("spin_stabilization")
+    np.testing.assert_allclose(spin.initial_angular_velocity_rad_s, [-0.3, -0.9, 0.9])
+    assert spin.controller.r == (0.01, 1.0, 1.0)
+    assert spin.variants == ("mpc", "open_loop")
+    assert not load_scenario("spin_stabilization", "open_loop").controller.enabled
+    orient = load_scenario("orientation_tracking", "velocity_only")
+    assert orient.controller.q_q == 0.0
+    lunar = load_scenario("lunar_jumping")
+    assert lunar.gravity_m_s2 == pytest.approx(9.80665 / 6)
+    assert [j.time_s for j in lunar.jumps] == [0.0, 5.0]
+
+
+def test_bad_scenario_names_the_field(tmp_path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("duration_s: -1\n")
+    with pytest.raises(ScenarioError, match="duration_s"):
+        load_scenario(bad)
+    with pytest.raises(ScenarioError, match="not found"):
+        load_scenario("no_such_scenario")

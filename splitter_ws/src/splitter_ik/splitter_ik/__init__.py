@@ -1,0 +1,1 @@
+"""SPLITTER IK / tether allocator and actuator sizing."""

@@ -1,0 +1,1 @@
+"""SPLITTER inertial-morphing MPC and gait phase manager."""

@@ -1,0 +1,1 @@
+"""ROS-free algorithm core of splitter_mpc: never imports rclpy."""

@@ -1,0 +1,1 @@
+"""SPLITTER interface layer: names, QoS, conversions, MCAP bags."""

@@ -1,0 +1,1 @@
+"""ROS-free algorithm core of splitter_msgs_py: never imports rclpy."""

@@ -1,0 +1,69 @@
+"""The single source of topic names, frame ids and joint names (DESIGN.md section 4).
+
+ROS-free: importing this module never imports rclpy, so cores, tests and tools
+can use the names without a ROS installation.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+# --- topics (DESIGN.md section 4; do not rename) -----------------------------
+CLOCK: Final = "/clock"
+IMU: Final = "/splitter/imu"
+ODOM: Final = "/splitter/odom"
+INERTIA: Final = "/splitter/inertia"
+JOINT_STATES: Final = "/splitter/joint_states"
+INERTIA_SETPOINT: Final = "/splitter/inertia_setpoint"
+JOINT_COMMANDS: Final = "/splitter/joint_commands"
+GAIT_PHASE: Final = "/splitter/gait_phase"
+ATTITUDE_REFERENCE: Final = "/splitter/attitude_reference"
+JUMP_COMMAND: Final = "/splitter/jump_command"
+MARKERS: Final = "/splitter/markers"
+DIAGNOSTICS: Final = "/diagnostics"
+
+# Topics the project adds (extensions of DESIGN.md section 4).
+# Reference attitude: geometry_msgs/PoseStamped (orientation) beside ATTITUDE_REFERENCE,
+# which carries the reference angular velocity as geometry_msgs/TwistStamped.
+ATTITUDE_REFERENCE_POSE: Final = "/splitter/attitude_reference_pose"
+
+# Fully qualified ROS type names, as rosbag2 writes them.
+TOPIC_TYPES: Final[dict[str, str]] = {
+    CLOCK: "rosgraph_msgs/msg/Clock",
+    IMU: "sensor_msgs/msg/Imu",
+    ODOM: "nav_msgs/msg/Odometry",
+    INERTIA: "geometry_msgs/msg/Vector3Stamped",
+    JOINT_STATES: "sensor_msgs/msg/JointState",
+    INERTIA_SETPOINT: "geometry_msgs/msg/Vector3Stamped",
+    JOINT_COMMANDS: "sensor_msgs/msg/JointState",
+    GAIT_PHASE: "std_msgs/msg/String",
+    ATTITUDE_REFERENCE: "geometry_msgs/msg/TwistStamped",
+    ATTITUDE_REFERENCE_POSE: "geometry_msgs/msg/PoseStamped",
+    JUMP_COMMAND: "geometry_msgs/msg/WrenchStamped",
+    MARKERS: "visualization_msgs/msg/MarkerArray",
+    DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+}
+
+# --- frames --------------------------------------------------------------------
+WORLD_FRAME: Final = "world"  # z up, ground plane z = 0
+BASE_FRAME: Final = "base"  # system body frame: origin at the centre of mass, x along the tether
+HEMI_FRAMES: Final = ("hemi_a", "hemi_b")
+
+# --- gait phases (paper section III.A, plus LANDED) -----------------------------
+GAIT_PHASES: Final = ("LAUNCH", "IN_FLIGHT", "JUMP", "LANDING", "LANDED")
+
+# --- joints ----------------------------------------------------------------------
+# Hemi "a" sits at +x (sign s = +1), hemi "b" at -x (s = -1).
+HEMIS: Final = ("a", "b")
+HEMI_SIGNS: Final[dict[str, float]] = {"a": 1.0, "b": -1.0}
+# Each hemi has four limbs; a limb is named by the body axis it reaches along.
+LIMB_AXES: Final = ("y_pos", "y_neg", "z_pos", "z_neg")
+LIMB_NAMES: Final = tuple(f"hemi_{h}_{axis}" for h in HEMIS for axis in LIMB_AXES)
+LIMB_JOINTS: Final = ("hip_abduction", "hip_pitch", "knee")
+TETHER_JOINT: Final = "tether"  # prismatic: distance between the two hemi bodies [m]
+JOINT_NAMES: Final = (
+    *(f"{limb}_{joint}" for limb in LIMB_NAMES for joint in LIMB_JOINTS),
+    TETHER_JOINT,
+)
+JOINT_INDEX: Final[dict[str, int]] = {name: i for i, name in enumerate(JOINT_NAMES)}
+N_JOINTS: Final = len(JOINT_NAMES)  # 8 limbs x 3 joints + tether = 25

@@ -1,0 +1,1 @@
+"""SPLITTER variable-inertia rigid-body simulator and its node."""

@@ -1,0 +1,134 @@
+"""Limb and tether kinematics of SPLITTER: joint angles <-> limb-tip (mass) positions.
+
+Each of the eight limbs has hip abduction, hip pitch and knee joints (thigh and
+shank of ``RobotModel.thigh_length_m`` / ``shank_length_m``); the tether is a
+prismatic joint whose position is the distance between the two hemi bodies
+(2 r_x). ROS-free; shared by the simulator (commands -> mass positions) and the
+IK / tether allocator (radii -> joint angles).
+
+Limb frame: ``u`` is the outward axis the limb reaches along (+-y or +-z of the
+body frame), ``v`` points along the tether away from the centre (s x), and
+``w = u x v``. Hip pitch and knee bend the limb in the plane spanned by ``u`` and
+the abduction-rotated ``v``; hip abduction rotates that plane about ``u``. With
+zero abduction and ``hip_pitch = -atan2(L2 sin(knee), L1 + L2 cos(knee))`` the tip
+lies on ``u`` at distance ``limb_reach_m(knee)``: the paper's radius r_y or r_z.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_sim.core.model import RobotModel
+
+_E = np.eye(3)
+# Outward axis u of each limb, in the order of splitter_msgs_py.names.LIMB_AXES.
+LIMB_OUTWARD_AXES = (_E[1], -_E[1], _E[2], -_E[2])
+
+
+def limb_frame(limb_index: int) -> NDArray[np.float64]:
+    """Rows (u, v, w) of limb ``limb_index`` (0..7, order of ``names.LIMB_NAMES``)."""
+    sign = 1.0 if limb_index < 4 else -1.0
+    u = LIMB_OUTWARD_AXES[limb_index % 4]
+    v = sign * _E[0]
+    return np.stack([u, v, np.cross(u, v)])
+
+
+def limb_forward_kinematics(
+    model: RobotModel, limb_index: int, joint_angles_rad: ArrayLike
+) -> NDArray[np.float64]:
+    """Tip position [m] relative to the hip (the hemi body) in the base frame.
+
+    ``joint_angles_rad`` is (hip_abduction, hip_pitch, knee).
+    """
+    q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    p_u = l1 * math.cos(q2) + l2 * math.cos(q2 + q3)
+    p_plane = l1 * math.sin(q2) + l2 * math.sin(q2 + q3)
+    u, v, w = limb_frame(limb_index)
+    v_rot = math.cos(q1) * v + math.sin(q1) * w
+    return p_u * u + p_plane * v_rot
+
+
+def limb_inverse_kinematics(
+    model: RobotModel, limb_index: int, tip_position_m: ArrayLike
+) -> NDArray[np.float64]:
+    """(hip_abduction, hip_pitch, knee) [rad] placing the tip at ``tip_position_m``.
+
+    ``tip_position_m`` is relative to the hip, base frame. Knee-positive branch,
+    abduction within +-pi/2. Raises ``ValueError`` when the tip is out of the
+    knee's reach (use :func:`limb_reach_limits`).
+    """
+    p = np.asarray(tip_position_m, dtype=float)
+    u, v, w = limb_frame(limb_index)
+    p_u, p_v, p_w = float(p @ u), float(p @ v), float(p @ w)
+    rho = math.hypot(p_v, p_w)
+    if rho < 1e-12:
+        q1 = 0.0
+    else:
+        q1 = math.atan2(p_w, p_v)
+        if q1 > math.pi / 2:
+            q1, rho = q1 - math.pi, -rho
+        elif q1 <= -math.pi / 2:
+            q1, rho = q1 + math.pi, -rho
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    d = math.hypot(p_u, rho)
+    d_min, d_max = limb_reach_limits(model)
+    if not d_min - 1e-12 <= d <= d_max + 1e-12:
+        raise ValueError(f"limb tip at distance {d:.4f} m is outside [{d_min:.4f}, {d_max:.4f}] m")
+    cos_knee = (d * d - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+    q3 = math.acos(min(1.0, max(-1.0, cos_knee)))
+    q2 = math.atan2(rho, p_u) - math.atan2(l2 * math.sin(q3), l1 + l2 * math.cos(q3))
+    return np.array([q1, q2, q3])
+
+
+def limb_reach_limits(model: RobotModel) -> tuple[float, float]:
+    """(min, max) hip-to-tip distance allowed by the knee range [m]."""
+    return model.limb_radius_min_m, model.limb_radius_max_m
+
+
+def radial_limb_joint_angles(model: RobotModel, radius_m: float) -> NDArray[np.float64]:
+    """Joint angles placing the tip on the limb's outward axis at ``radius_m`` [rad]."""
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    cos_knee = (radius_m * radius_m - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+    q3 = math.acos(min(1.0, max(-1.0, cos_knee)))
+    q2 = -math.atan2(l2 * math.sin(q3), l1 + l2 * math.cos(q3))
+    return np.array([0.0, q2, q3])
+
+
+def joint_positions_from_radii(model: RobotModel, radii_m: ArrayLike) -> NDArray[np.float64]:
+    """All 25 joint positions (order of ``names.JOINT_NAMES``) for symmetric radii.
+
+    Limb joints [rad] for r_y (y limbs) and r_z (z limbs); tether [m] = 2 r_x.
+    """
+    rx, ry, rz = (float(v) for v in np.asarray(radii_m, dtype=float))
+    q = np.zeros(25)
+    for limb in range(8):
+        radius = ry if limb % 4 < 2 else rz
+        q[3 * limb : 3 * limb + 3] = radial_limb_joint_angles(model, radius)
+    q[24] = 2.0 * rx
+    return q
+
+
+def limb_offsets_from_joint_positions(
+    model: RobotModel, joint_positions: ArrayLike
+) -> NDArray[np.float64]:
+    """Tip offsets (8, 3) [m] from each hemi body, from the 24 limb joint angles."""
+    q = np.asarray(joint_positions, dtype=float)
+    return np.stack(
+        [limb_forward_kinematics(model, limb, q[3 * limb : 3 * limb + 3]) for limb in range(8)]
+    )
+
+
+def radii_from_joint_positions(
+    model: RobotModel, joint_positions: ArrayLike
+) -> NDArray[np.float64]:
+    """Effective (r_x, r_y, r_z) [m]: half the tether, mean y-limb and z-limb reach."""
+    q = np.asarray(joint_positions, dtype=float)
+    offsets = limb_offsets_from_joint_positions(model, q)
+    reach = np.linalg.norm(offsets, axis=1)
+    ry = float(np.mean(reach[[0, 1, 4, 5]]))
+    rz = float(np.mean(reach[[2, 3, 6, 7]]))
+    return np.array([q[24] / 2.0, ry, rz])
