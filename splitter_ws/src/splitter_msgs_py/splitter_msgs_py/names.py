@@ -26,6 +26,10 @@ DIAGNOSTICS: Final = "/diagnostics"
 # Reference attitude: geometry_msgs/PoseStamped (orientation) beside ATTITUDE_REFERENCE,
 # which carries the reference angular velocity as geometry_msgs/TwistStamped.
 ATTITUDE_REFERENCE_POSE: Final = "/splitter/attitude_reference_pose"
+# Ground contact wrench on each hemi (world frame), geometry_msgs/WrenchStamped.
+CONTACT_WRENCH_A: Final = "/splitter/hemi_a/contact_wrench"
+CONTACT_WRENCH_B: Final = "/splitter/hemi_b/contact_wrench"
+CONTACT_WRENCHES: Final = (CONTACT_WRENCH_A, CONTACT_WRENCH_B)
 
 # Fully qualified ROS type names, as rosbag2 writes them.
 TOPIC_TYPES: Final[dict[str, str]] = {
@@ -39,6 +43,8 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     GAIT_PHASE: "std_msgs/msg/String",
     ATTITUDE_REFERENCE: "geometry_msgs/msg/TwistStamped",
     ATTITUDE_REFERENCE_POSE: "geometry_msgs/msg/PoseStamped",
+    CONTACT_WRENCH_A: "geometry_msgs/msg/WrenchStamped",
+    CONTACT_WRENCH_B: "geometry_msgs/msg/WrenchStamped",
     JUMP_COMMAND: "geometry_msgs/msg/WrenchStamped",
     MARKERS: "visualization_msgs/msg/MarkerArray",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",

@@ -1,0 +1,149 @@
+"""Conversions round-trip through CDR serialization and reject bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+
+from splitter_msgs_py import conversions as conv
+from splitter_msgs_py import names
+
+RNG = np.random.default_rng(7)
+
+
+def cdr_round_trip(msg):
+    return deserialize_message(serialize_message(msg), type(msg))
+
+
+def random_quaternion() -> np.ndarray:
+    q = RNG.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+def test_stamp_is_exact_in_nanoseconds() -> None:
+    for t_ns in (0, 5_000_000, 1_999_999_999, 123_456_789_012):
+        assert conv.stamp_from_msg(cdr_round_trip(conv.stamp_to_msg(t_ns))) == t_ns
+    assert conv.stamp_from_msg(conv.clock_to_msg(7).clock) == 7
+    with pytest.raises(conv.MessageValidationError):
+        conv.stamp_to_msg(-1)
+
+
+def test_imu_round_trip() -> None:
+    q, w, a = random_quaternion(), RNG.normal(size=3), RNG.normal(size=3)
+    sample = conv.imu_from_msg(cdr_round_trip(conv.imu_to_msg(15_000_000, q, w, a)))
+    assert sample.t_ns == 15_000_000
+    np.testing.assert_allclose(sample.orientation_wxyz, q, atol=1e-15)
+    np.testing.assert_array_equal(sample.angular_velocity_rad_s, w)
+    np.testing.assert_array_equal(sample.linear_acceleration_m_s2, a)
+
+
+def test_odom_round_trip_rotates_velocity_into_base_and_back() -> None:
+    q, p, v, w = random_quaternion(), RNG.normal(size=3), RNG.normal(size=3), RNG.normal(size=3)
+    msg = cdr_round_trip(conv.odom_to_msg(10, p, q, v, w))
+    assert (msg.header.frame_id, msg.child_frame_id) == (names.WORLD_FRAME, names.BASE_FRAME)
+    base_v = np.array(
+        [msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z]
+    )
+    np.testing.assert_allclose(conv.quaternion_to_matrix(q) @ base_v, v, atol=1e-12)
+    sample = conv.odom_from_msg(msg)
+    np.testing.assert_allclose(sample.velocity_world_m_s, v, atol=1e-12)
+    np.testing.assert_array_equal(sample.position_m, p)
+    np.testing.assert_array_equal(sample.angular_velocity_rad_s, w)
+
+
+def test_vector3_wrench_twist_pose_round_trips() -> None:
+    v = conv.vector3_from_msg(cdr_round_trip(conv.vector3_to_msg(3, [0.48, 141.36, 141.36])))
+    assert v.t_ns == 3 and v.frame_id == names.BASE_FRAME
+    np.testing.assert_array_equal(v.vector, [0.48, 141.36, 141.36])
+    wr = conv.wrench_from_msg(cdr_round_trip(conv.wrench_to_msg(4, [40, 0, 40], [0, 1, 0])))
+    np.testing.assert_array_equal(wr.force_n, [40, 0, 40])
+    np.testing.assert_array_equal(wr.torque_nm, [0, 1, 0])
+    t_ns, w = conv.twist_from_msg(cdr_round_trip(conv.twist_to_msg(5, [0.0, 1.0, 0.0])))
+    assert t_ns == 5
+    np.testing.assert_array_equal(w, [0.0, 1.0, 0.0])
+    q = random_quaternion()
+    t_ns, q_back, p = conv.pose_from_msg(cdr_round_trip(conv.pose_to_msg(6, q, [1, 2, 3])))
+    np.testing.assert_allclose(q_back, q, atol=1e-15)
+    np.testing.assert_array_equal(p, [1, 2, 3])
+
+
+def test_joint_state_round_trip_and_reordering() -> None:
+    pos, vel = RNG.normal(size=25), RNG.normal(size=25)
+    msg = cdr_round_trip(conv.joint_state_to_msg(9, pos, vel))
+    assert list(msg.name) == list(names.JOINT_NAMES)
+    sample = conv.joint_state_from_msg(msg)
+    np.testing.assert_array_equal(sample.position, pos)
+    np.testing.assert_array_equal(sample.velocity, vel)
+    assert sample.effort is None
+    # a publisher may order joints differently
+    msg.name = list(reversed(msg.name))
+    msg.position = list(reversed(msg.position))
+    msg.velocity = []
+    sample = conv.joint_state_from_msg(msg)
+    np.testing.assert_array_equal(sample.position, pos)
+    assert sample.velocity is None
+
+
+@pytest.mark.parametrize(
+    ("mutate", "match"),
+    [
+        (lambda m: m.name.__setitem__(0, "no_such_joint"), "unknown joints"),
+        (lambda m: m.name.__setitem__(1, m.name[0]), "duplicate"),
+        (lambda m: (m.name.pop(), m.position.pop()), "missing"),
+        (lambda m: m.position.__setitem__(3, math.nan), "non-finite"),
+        (lambda m: m.position.__setitem__(3, math.inf), "non-finite"),
+        (lambda m: m.velocity.pop(), "velocity"),
+    ],
+)
+def test_joint_state_rejects_bad_messages(mutate, match: str) -> None:
+    msg = conv.joint_state_to_msg(0, np.zeros(25), np.zeros(25))
+    msg.name = list(msg.name)
+    msg.position = list(msg.position)
+    msg.velocity = list(msg.velocity)
+    mutate(msg)
+    with pytest.raises(conv.MessageValidationError, match=match):
+        conv.joint_state_from_msg(msg)
+
+
+def test_quaternion_normalized_within_tolerance_rejected_beyond() -> None:
+    msg = conv.imu_to_msg(0, [1, 0, 0, 0], [0, 0, 0], [0, 0, 0])
+    msg.orientation.w = 1.0005
+    np.testing.assert_allclose(np.linalg.norm(conv.imu_from_msg(msg).orientation_wxyz), 1.0)
+    msg.orientation.w = 1.1
+    with pytest.raises(conv.MessageValidationError, match="norm"):
+        conv.imu_from_msg(msg)
+    msg.orientation.w = math.nan
+    with pytest.raises(conv.MessageValidationError, match="non-finite"):
+        conv.imu_from_msg(msg)
+
+
+def test_builders_refuse_to_publish_nan() -> None:
+    with pytest.raises(conv.MessageValidationError):
+        conv.vector3_to_msg(0, [math.nan, 0, 0])
+    with pytest.raises(conv.MessageValidationError):
+        conv.joint_state_to_msg(0, np.zeros(24))
+    with pytest.raises(conv.MessageValidationError):
+        conv.diagnostics_to_msg(0, [conv.DiagnosticStatusSample("x", 0, "", {"a": math.inf})])
+
+
+def test_diagnostics_round_trip() -> None:
+    statuses = [
+        conv.DiagnosticStatusSample(
+            "simulator: energy", 0, "ok", {"energy_j": 114.6, "steps": 3, "slack": False}
+        ),
+        conv.DiagnosticStatusSample("mpc: solver", 1, "late", {"status": "Maximum_Iterations"}),
+    ]
+    back = conv.diagnostics_from_msg(cdr_round_trip(conv.diagnostics_to_msg(1, statuses)))
+    assert back[0].values == {"energy_j": 114.6, "steps": 3.0, "slack": False}
+    assert back[1].level == 1 and back[1].values["status"] == "Maximum_Iterations"
+
+
+def test_every_topic_has_a_message_class() -> None:
+    for topic, type_name in names.TOPIC_TYPES.items():
+        cls = conv.TOPIC_MESSAGE_CLASSES[topic]
+        assert type_name.endswith(cls.__name__)
+    with pytest.raises(ValueError):
+        conv.message_class("not_a_type")
