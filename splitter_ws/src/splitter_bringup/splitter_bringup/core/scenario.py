@@ -29,11 +29,19 @@ class ScenarioError(ValueError):
 
 @dataclass(frozen=True)
 class JumpSpec:
-    """A planned jump: thrust ``force_n`` (world frame) for ``duration_s`` from ``time_s``."""
+    """A planned jump: thrust ``force_n`` (world frame) for ``duration_s`` from ``time_s``.
+
+    ``hemi`` names the Hemi-SPLITTER whose legs push ("a", "b"), or "auto" for
+    the one touching the ground (the lower one). The thrust acts through that
+    hemi's body, so it also exerts a moment about the centre of mass.
+    The jump starts at the first control tick at or after ``time_s`` when the
+    pushing hemi is in stance.
+    """
 
     time_s: float  # [s]
     force_n: tuple[float, float, float]  # [N] world frame
     duration_s: float  # [s]
+    hemi: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -168,8 +176,11 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
                 time_s=float(j.get("time_s", 0.0)),
                 force_n=(float(force[0]), float(force[1]), float(force[2])),
                 duration_s=_positive(j, "duration_s"),
+                hemi=str(j.get("hemi", "auto")),
             )
         )
+        if jumps[-1].hemi not in ("a", "b", "auto"):
+            raise ScenarioError(f"jumps[{i}].hemi must be 'a', 'b' or 'auto'")
         if jumps[-1].time_s < 0.0:
             raise ScenarioError(f"jumps[{i}].time_s must be >= 0")
     return Scenario(
