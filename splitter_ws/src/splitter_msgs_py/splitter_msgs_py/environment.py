@@ -43,15 +43,18 @@ def ros_environment(
             raise ValueError(f"ROS_DOMAIN_ID must be in [0, 232], got {domain_id}")
         env["ROS_DOMAIN_ID"] = str(domain_id)
     env.setdefault("ROS_DOMAIN_ID", str(DEFAULT_DOMAIN_ID))
+    # SUBNET is rmw_fastrtps's "use the XML profile as it is". LOCALHOST would make the rmw
+    # add a transport of its own, which binds a socket on the host's external address
+    # (seen on these machines): the loopback restriction is the profile's job.
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+    env.pop("ROS_LOCALHOST_ONLY", None)
     if multi_host:
         env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
         env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
-        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     else:
         profile = str(loopback_profile_path())
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = profile
         env["FASTDDS_DEFAULT_PROFILES_FILE"] = profile
-        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     return env
 
 

@@ -50,7 +50,7 @@ def test_profile_whitelists_only_loopback() -> None:
 
 def test_this_test_process_uses_the_loopback_profile() -> None:
     assert uses_loopback_profile()
-    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
     assert os.environ["RMW_IMPLEMENTATION"] == "rmw_fastrtps_cpp"
 
 
