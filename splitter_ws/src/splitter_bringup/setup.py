@@ -8,7 +8,7 @@ setup(
     name=PACKAGE_NAME,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    package_data={"": ["*.xml", "*.yaml", "*.json"]},
+    package_data={"": ["*.xml", "*.yaml", "*.json"], PACKAGE_NAME: ["scenarios/*.yaml"]},
     include_package_data=True,
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE_NAME]),
