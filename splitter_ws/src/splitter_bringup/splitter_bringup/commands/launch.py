@@ -1,0 +1,59 @@
+"""``splitter launch``: start every node of a scenario as its own process."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+from splitter_bringup.core.scenario import available_scenarios, load_scenario
+from splitter_bringup.launcher import launch
+
+LOG = logging.getLogger(__name__)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``splitter launch``."""
+    parser.add_argument(
+        "scenario",
+        nargs="?",
+        default="lunar_jumping",
+        help=f"scenario name ({', '.join(available_scenarios())}) or YAML path",
+    )
+    parser.add_argument("--variant", help="scenario variant (default: its first)")
+    parser.add_argument("--out", type=Path, default=Path("runs/launch"), help="output folder")
+    parser.add_argument(
+        "--real-time", action="store_true", help="pace the simulator by the wall clock"
+    )
+    parser.add_argument("--rate", type=float, default=1.0, help="real-time rate factor")
+    parser.add_argument("--no-record", action="store_true", help="do not record a bag")
+    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for every node")
+    parser.add_argument(
+        "--multi-host",
+        action="store_true",
+        help="opt in to DDS beyond 127.0.0.1 (default: loopback-only profile)",
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """Launch, wait for the end of the scenario or Ctrl-C, stop every node."""
+    if args.rate <= 0.0:
+        LOG.error("--rate must be > 0, got %s", args.rate)
+        return 2
+    scenario = load_scenario(args.scenario, args.variant)
+    result = launch(
+        scenario,
+        args.out,
+        real_time=args.real_time,
+        rate_factor=args.rate,
+        record=not args.no_record,
+        multi_host=args.multi_host,
+        domain_id=args.domain_id,
+    )
+    for name, code in result.exit_codes.items():
+        LOG.info("%-22s exit code %s", name, code)
+    if result.bag_dir is not None:
+        LOG.info("bag: %s", result.bag_dir)
+    if result.outcome == "stopped":
+        return 130
+    return 0 if result.ok else 1

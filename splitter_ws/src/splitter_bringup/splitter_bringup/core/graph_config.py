@@ -1,0 +1,147 @@
+"""The node graph of a scenario: which nodes run, with which parameters.
+
+ROS-free. The launcher writes these parameters to YAML files (one process per
+node); the in-process graph tests pass the very same dictionaries as parameter
+overrides, so both ways run the same graph.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from splitter_bringup.core.scenario import Scenario
+from splitter_msgs_py import names
+
+
+@dataclass(frozen=True)
+class NodeLaunch:
+    """One node of the graph."""
+
+    name: str  # ROS node name (also the process name in logs)
+    entry: str  # "module:function" started by splitter_bringup.node_runner
+    node_class: str  # "module:Class" for in-process graphs
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+
+
+# Topics the recorder takes by default: the whole contract of DESIGN.md section 4.
+RECORDED_TOPICS = tuple(names.TOPIC_TYPES)
+
+
+def _floats(values) -> list[float]:
+    return [float(v) for v in values]
+
+
+def simulator_parameters(scenario: Scenario, real_time: bool, rate_factor: float) -> dict:
+    """Simulator node parameters of a scenario."""
+    return {
+        "use_sim_time": False,
+        "mode": "real_time" if real_time else "lockstep",
+        "rate_factor": float(rate_factor),
+        "duration_s": float(scenario.duration_s),
+        "dt_s": float(scenario.sim_dt_s),
+        "gravity": str(scenario.gravity_m_s2),
+        "ground_contact": bool(scenario.ground_contact),
+        "initial_position_m": _floats(scenario.initial_position_m),
+        "initial_velocity_m_s": _floats(scenario.initial_velocity_m_s),
+        "initial_orientation_euler_deg": _floats(scenario.initial_orientation_euler_deg),
+        "initial_angular_velocity_rad_s": _floats(scenario.initial_angular_velocity_rad_s),
+        "initial_radii_m": _floats(scenario.initial_radii_m),
+    }
+
+
+def mpc_parameters(scenario: Scenario) -> dict:
+    """Inertial-morphing MPC node parameters of a scenario."""
+    c = scenario.controller
+    return {
+        "use_sim_time": True,
+        "enabled": bool(c.enabled),
+        "q_w": _floats(c.q_w),
+        "r": _floats(c.r),
+        "q_t": _floats(c.q_t),
+        "q_q": float(c.q_q),
+        "q_tq": float(c.q_tq),
+    }
+
+
+def gait_parameters(scenario: Scenario) -> dict:
+    """Gait phase manager parameters: the jump plan and the attitude reference."""
+    c = scenario.controller
+    return {
+        "use_sim_time": True,
+        "w_ref_rad_s": _floats(c.w_ref_rad_s),
+        "attitude_reference": c.attitude_reference,
+        "jump_times_s": [float(j.time_s) for j in scenario.jumps],
+        "jump_forces_n": [float(f) for j in scenario.jumps for f in j.force_n],
+        "jump_durations_s": [float(j.duration_s) for j in scenario.jumps],
+        "jump_hemis": [j.hemi for j in scenario.jumps],
+    }
+
+
+def allocator_parameters(scenario: Scenario) -> dict:
+    """IK / tether allocator parameters."""
+    return {"use_sim_time": True, "initial_radii_m": _floats(scenario.initial_radii_m)}
+
+
+def recorder_parameters(bag_dir: Path, topics: tuple[str, ...] = RECORDED_TOPICS) -> dict:
+    """Recorder parameters: the bag directory and the topics."""
+    return {"use_sim_time": True, "output": str(bag_dir), "topics": list(topics)}
+
+
+def graph_nodes(
+    scenario: Scenario,
+    real_time: bool = False,
+    rate_factor: float = 1.0,
+    bag_dir: Path | None = None,
+) -> list[NodeLaunch]:
+    """The nodes of a scenario run, in start order (the recorder first, the simulator last)."""
+    nodes = []
+    if bag_dir is not None:
+        nodes.append(
+            NodeLaunch(
+                "recorder",
+                "splitter_msgs_py.recorder_node:main",
+                "splitter_msgs_py.recorder_node:RecorderNode",
+                recorder_parameters(bag_dir),
+            )
+        )
+    nodes += [
+        NodeLaunch(
+            "inertial_morphing_mpc",
+            "splitter_mpc.inertial_morphing_mpc_node:main",
+            "splitter_mpc.inertial_morphing_mpc_node:InertialMorphingMpcNode",
+            mpc_parameters(scenario),
+        ),
+        NodeLaunch(
+            "ik_tether_allocator",
+            "splitter_ik.ik_tether_allocator_node:main",
+            "splitter_ik.ik_tether_allocator_node:IkTetherAllocatorNode",
+            allocator_parameters(scenario),
+        ),
+        NodeLaunch(
+            "gait_phase_manager",
+            "splitter_mpc.gait_phase_manager_node:main",
+            "splitter_mpc.gait_phase_manager_node:GaitPhaseManagerNode",
+            gait_parameters(scenario),
+        ),
+        NodeLaunch(
+            "simulator",
+            "splitter_sim.simulator_node:main",
+            "splitter_sim.simulator_node:SimulatorNode",
+            simulator_parameters(scenario, real_time, rate_factor),
+        ),
+    ]
+    return nodes
+
+
+def write_parameter_file(node: NodeLaunch, folder: Path) -> Path:
+    """Write ``node``'s parameters as a ROS 2 parameter file; its path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{node.name}.yaml"
+    content = {node.name: {"ros__parameters": dict(node.parameters)}}
+    path.write_text(yaml.safe_dump(content, sort_keys=True), encoding="utf-8")
+    return path
