@@ -1,0 +1,595 @@
+"""Gait phase machine: the paper's Launch, In-Flight, Jump and Landing phases, plus LANDED.
+
+ROS-free and deterministic: :class:`GaitPhaseMachine` is a pure state machine fed
+once per control tick with the measured state and the ground contact forces; it
+returns the gait phase, the jump wrench about the centre of mass and, when it
+changes, the attitude reference for the MPC. The ``gait_phase_manager`` node and
+the library closed loop call the same object in the same order.
+
+Phases (paper section III.A; names from ``splitter_msgs_py.names.GAIT_PHASES``)::
+
+      start in contact, jump left          start without contact
+                 |                                   |
+                 v           lift-off                v
+              LAUNCH  <------------------------>  IN_FLIGHT  <--------.
+    (ground before and during      touchdown  (no stance, jump left,  |
+     the first jump's thrust)  before 1st jump  or nothing planned)    |
+                 |                                   |                 | lift-off, or a
+                 | end of thrust, in stance          | touchdown,      | thrust ending
+                 v                                   v jump left       | in the air
+               JUMP  -----------------------------------------------'
+    (ground with a jump left: waiting, then thrusting)
+                 |
+                 | end of the last thrust (anywhere), or contact with no jump left
+                 v
+              LANDING   (landing w_ref; the flight, touchdowns and bounces)
+                 |  ^
+     at rest for |  | contact lost, or |v| or |w| above
+    landed_dwell v  | landed_exit_factor x the rest thresholds
+              LANDED
+
+Every transition is evaluated once per tick, in this order: end a finished
+thrust, start a due one, then derive the phase from (thrusting, jumps left,
+on the ground, at rest). A thrust holds its phase (LAUNCH for the first jump,
+JUMP for the others) whatever the contact does.
+
+* Stance of a hemi: its contact normal force (world z) above
+  ``stance_force_threshold_n``. Touchdown counts at once; lift-off only once no
+  hemi has been in stance for longer than ``liftoff_debounce_ns`` (a chattering
+  spring-damper contact does not flicker the phase).
+* Ground between jumps: a touchdown while a planned jump is still to come is
+  the Jump phase (paper: "one Hemi-SPLITTER makes contact with the ground and
+  jumps"): the robot waits in stance with a zero wrench until the jump is due.
+  If it bounces off before then it is In-Flight again. The same ground phase
+  before the first jump is Launch ("each side jumps while adding a rotational
+  motion"), so Launch is the ground phase before and during the first thrust,
+  whatever its planned time.
+* A thrust starts at the first tick at or after the jump's planned time when the
+  pushing hemi is in stance (``"a"``, ``"b"``, or ``"auto"``: the one in stance,
+  the lower one if both) and lasts the planned duration on the tick grid, in the
+  air or not: the legs keep extending over their stroke as the body rises. Its
+  phase is held (LAUNCH or JUMP) until the thrust ends. A due jump whose hemi is
+  not in stance waits (reported by :attr:`GaitOutput.jump_waiting`).
+* Landing is "the flight after the last planned jump": the thrust is over and the
+  attitude reference asks for ``landing_w_ref_rad_s`` (zero by default: with
+  angular momentum conserved in flight, slowing the spin means maximising the
+  inertia) from the attitude measured when Landing starts. Touchdowns and bounces
+  after the last jump stay in LANDING until the robot is at rest: LANDED. A run
+  with no jump planned is IN_FLIGHT until its first contact, then LANDING.
+
+Attitude reference (``AttitudeReference``): emitted on the first tick and when
+Landing starts. In mode ``"integrate_w_ref"`` the attitude reference starts at
+the first measured attitude and is propagated by the consumer with the angular
+velocity reference (``q_ref(t) = q_ref(t0) (x) exp(w_ref (t - t0) / 2)``,
+body-frame rate); in mode ``"initial"`` the first measured attitude is held.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_msgs_py import names
+
+_LOG = logging.getLogger(__name__)
+
+NS_PER_S = 1_000_000_000  # [ns/s]
+HEMI_INDEX: dict[str, int] = {hemi: i for i, hemi in enumerate(names.HEMIS)}
+JUMP_HEMIS = ("a", "b", "auto")
+ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref")
+
+
+class GaitPhase(StrEnum):
+    """The gait phases, valued as published on ``/splitter/gait_phase``."""
+
+    LAUNCH = "LAUNCH"
+    IN_FLIGHT = "IN_FLIGHT"
+    JUMP = "JUMP"
+    LANDING = "LANDING"
+    LANDED = "LANDED"
+
+
+def seconds_to_ns(t_s: float) -> int:
+    """Integer nanoseconds of a time in seconds, rounded to the nearest ns."""
+    return round(t_s * NS_PER_S)
+
+
+# --- quaternions (scalar first, world <- base) -------------------------------------------
+def rotation_matrix(q_wxyz: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix (world <- base) of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = (float(c) for c in np.asarray(q_wxyz, dtype=float))
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def quaternion_multiply(p_wxyz: ArrayLike, q_wxyz: ArrayLike) -> NDArray[np.float64]:
+    """Hamilton product ``p (x) q``."""
+    pw, px, py, pz = (float(c) for c in np.asarray(p_wxyz, dtype=float))
+    qw, qx, qy, qz = (float(c) for c in np.asarray(q_wxyz, dtype=float))
+    return np.array(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ]
+    )
+
+
+def propagate_attitude(
+    q_wxyz: ArrayLike, angular_velocity_rad_s: ArrayLike, dt_s: float
+) -> NDArray[np.float64]:
+    """Attitude after ``dt_s`` at a constant body-frame rate: ``q (x) exp(w dt / 2)``."""
+    w = np.asarray(angular_velocity_rad_s, dtype=float)
+    angle = float(np.linalg.norm(w)) * dt_s  # [rad]
+    if angle == 0.0:
+        delta = np.array([1.0, 0.0, 0.0, 0.0])
+    else:
+        axis = w / np.linalg.norm(w)
+        delta = np.concatenate(([math.cos(angle / 2.0)], math.sin(angle / 2.0) * axis))
+    q = quaternion_multiply(q_wxyz, delta)
+    return q / np.linalg.norm(q)
+
+
+# --- geometry ------------------------------------------------------------------------------
+def hemi_offset_world(
+    orientation_wxyz: ArrayLike, radius_x_m: float, hemi: str
+) -> NDArray[np.float64]:
+    """``p_hemi - p_com`` in world: ``R(q) (s r_x, 0, 0)``, s = +1 for hemi a, -1 for b."""
+    sign = names.HEMI_SIGNS[hemi]
+    return rotation_matrix(orientation_wxyz)[:, 0] * (sign * radius_x_m)
+
+
+def jump_wrench(
+    force_n: ArrayLike, orientation_wxyz: ArrayLike, radius_x_m: float, hemi: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Force [N] and torque about the centre of mass [Nm] (world) of a thrust through ``hemi``.
+
+    The pushing legs act on the hemi body, so the torque is
+    ``(p_hemi - p_com) x F``.
+    """
+    force = np.asarray(force_n, dtype=float)
+    return force.copy(), np.cross(hemi_offset_world(orientation_wxyz, radius_x_m, hemi), force)
+
+
+# --- the jump plan -------------------------------------------------------------------------
+class JumpLike(Protocol):
+    """Anything shaped like ``splitter_bringup.core.scenario.JumpSpec``."""
+
+    time_s: float
+    force_n: Sequence[float]
+    duration_s: float
+    hemi: str
+
+
+@dataclass(frozen=True)
+class PlannedJump:
+    """One planned jump on the integer-nanosecond clock."""
+
+    time_ns: int  # [ns] earliest start
+    force_n: tuple[float, float, float]  # [N] world frame
+    duration_ns: int  # [ns]
+    hemi: str  # "a", "b" or "auto"
+
+    @classmethod
+    def from_spec(cls, spec: JumpLike) -> PlannedJump:
+        """From a scenario ``JumpSpec`` (or anything with the same fields)."""
+        force = tuple(float(f) for f in spec.force_n)
+        return cls(
+            time_ns=seconds_to_ns(float(spec.time_s)),
+            force_n=(force[0], force[1], force[2]),
+            duration_ns=seconds_to_ns(float(spec.duration_s)),
+            hemi=str(spec.hemi),
+        )
+
+
+def validate_jump_plan(jumps: Sequence[PlannedJump]) -> tuple[PlannedJump, ...]:
+    """The plan, checked; ``ValueError`` names the offending jump and field.
+
+    Times must be >= 0 and each planned thrust must end before the next jump's
+    planned time (a later jump never interrupts an earlier one).
+    """
+    for i, jump in enumerate(jumps):
+        where = f"jump {i}"
+        if jump.time_ns < 0:
+            raise ValueError(f"{where}: time_s must be >= 0, got {jump.time_ns / NS_PER_S}")
+        if jump.duration_ns <= 0:
+            raise ValueError(f"{where}: duration_s must be > 0, got {jump.duration_ns / NS_PER_S}")
+        if len(jump.force_n) != 3 or not all(math.isfinite(f) for f in jump.force_n):
+            raise ValueError(f"{where}: force_n must be 3 finite numbers, got {jump.force_n}")
+        if jump.hemi not in JUMP_HEMIS:
+            raise ValueError(f"{where}: hemi must be one of {JUMP_HEMIS}, got {jump.hemi!r}")
+        if i > 0:
+            previous = jumps[i - 1]
+            if jump.time_ns < previous.time_ns + previous.duration_ns:
+                raise ValueError(
+                    f"{where}: time_s {jump.time_ns / NS_PER_S} s is before the end of jump "
+                    f"{i - 1} ({(previous.time_ns + previous.duration_ns) / NS_PER_S} s)"
+                )
+    return tuple(jumps)
+
+
+def jump_plan_from_arrays(
+    times_s: Sequence[float],
+    forces_n: Sequence[float],
+    durations_s: Sequence[float],
+    hemis: Sequence[str],
+) -> tuple[PlannedJump, ...]:
+    """The plan from flat parameter arrays (3 force components per jump), validated.
+
+    ``ValueError`` names the parameter (``jump_forces_n``, ...) that does not fit.
+    """
+    n = len(times_s)
+    if len(forces_n) != 3 * n:
+        raise ValueError(
+            f"jump_forces_n: expected 3 values per jump ({3 * n}), got {len(forces_n)}"
+        )
+    if len(durations_s) != n:
+        raise ValueError(
+            f"jump_durations_s: expected {n} values (one per jump), got {len(durations_s)}"
+        )
+    if len(hemis) != n:
+        raise ValueError(f"jump_hemis: expected {n} values (one per jump), got {len(hemis)}")
+    for name, values in (
+        ("jump_times_s", times_s),
+        ("jump_forces_n", forces_n),
+        ("jump_durations_s", durations_s),
+    ):
+        if not all(math.isfinite(float(v)) for v in values):
+            raise ValueError(f"{name}: values must be finite, got {list(values)}")
+    for i, hemi in enumerate(hemis):
+        if hemi not in JUMP_HEMIS:
+            raise ValueError(f"jump_hemis: entry {i} must be one of {JUMP_HEMIS}, got {hemi!r}")
+    for i in range(n):
+        if times_s[i] < 0.0:
+            raise ValueError(f"jump_times_s: entry {i} must be >= 0, got {times_s[i]}")
+        if durations_s[i] <= 0.0:
+            raise ValueError(f"jump_durations_s: entry {i} must be > 0, got {durations_s[i]}")
+    jumps = [
+        PlannedJump(
+            time_ns=seconds_to_ns(float(times_s[i])),
+            force_n=(
+                float(forces_n[3 * i]),
+                float(forces_n[3 * i + 1]),
+                float(forces_n[3 * i + 2]),
+            ),
+            duration_ns=seconds_to_ns(float(durations_s[i])),
+            hemi=str(hemis[i]),
+        )
+        for i in range(n)
+    ]
+    try:
+        return validate_jump_plan(jumps)
+    except ValueError as exc:
+        raise ValueError(f"jump_times_s: {exc}") from exc
+
+
+def jump_plan_parameters(jumps: Iterable[JumpLike]) -> dict[str, list[float] | list[str]]:
+    """The node parameters (flat arrays) describing scenario jumps, for a params file."""
+    jumps = list(jumps)
+    return {
+        "jump_times_s": [float(j.time_s) for j in jumps],
+        "jump_forces_n": [float(f) for j in jumps for f in j.force_n],
+        "jump_durations_s": [float(j.duration_s) for j in jumps],
+        "jump_hemis": [str(j.hemi) for j in jumps],
+    }
+
+
+# --- configuration and outputs -------------------------------------------------------------
+def _vector3(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: expected 3 finite numbers, got {value!r}")
+    return arr
+
+
+@dataclass(frozen=True)
+class GaitConfig:
+    """Thresholds, plan and references of the gait phase machine (validated)."""
+
+    jumps: tuple[PlannedJump, ...] = ()
+    stance_force_threshold_n: float = 2.0  # [N] contact normal force meaning stance
+    liftoff_debounce_ns: int = 20_000_000  # [ns] no stance for longer means lift-off
+    landed_speed_m_s: float = 0.05  # [m/s] centre-of-mass speed at rest
+    landed_angular_speed_rad_s: float = 0.05  # [rad/s] |w| at rest
+    landed_dwell_ns: int = 500_000_000  # [ns] at rest this long means LANDED
+    landed_exit_factor: float = 2.0  # [-] LANDED is left above this x the rest thresholds
+    w_ref_rad_s: tuple[float, float, float] = (0.0, 1.0, 0.0)  # [rad/s] flight, body frame
+    landing_w_ref_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
+    attitude_reference: str = "integrate_w_ref"
+
+    def __post_init__(self) -> None:
+        validate_jump_plan(self.jumps)
+        positive = {
+            "stance_force_threshold_n": self.stance_force_threshold_n,
+            "landed_speed_m_s": self.landed_speed_m_s,
+            "landed_angular_speed_rad_s": self.landed_angular_speed_rad_s,
+        }
+        for name, value in positive.items():
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: must be finite and > 0, got {value}")
+        if self.liftoff_debounce_ns < 0:
+            raise ValueError(f"liftoff_debounce_ns: must be >= 0, got {self.liftoff_debounce_ns}")
+        if self.landed_dwell_ns < 0:
+            raise ValueError(f"landed_dwell_ns: must be >= 0, got {self.landed_dwell_ns}")
+        if not (math.isfinite(self.landed_exit_factor) and self.landed_exit_factor >= 1.0):
+            raise ValueError(f"landed_exit_factor: must be >= 1, got {self.landed_exit_factor}")
+        _vector3(self.w_ref_rad_s, "w_ref_rad_s")
+        _vector3(self.landing_w_ref_rad_s, "landing_w_ref_rad_s")
+        if self.attitude_reference not in ATTITUDE_REFERENCE_MODES:
+            raise ValueError(
+                f"attitude_reference: must be one of {ATTITUDE_REFERENCE_MODES}, "
+                f"got {self.attitude_reference!r}"
+            )
+
+
+@dataclass(frozen=True)
+class AttitudeReference:
+    """Angular velocity reference and the attitude reference at ``stamp_ns``."""
+
+    stamp_ns: int
+    w_ref_rad_s: NDArray[np.float64]  # [rad/s] body frame
+    q_ref_wxyz: NDArray[np.float64]  # world <- base at stamp_ns
+    propagate: bool  # True: q_ref moves with w_ref; False: q_ref is held
+
+    def attitude_at(self, t_ns: int) -> NDArray[np.float64]:
+        """The attitude reference at ``t_ns``."""
+        if not self.propagate:
+            return self.q_ref_wxyz.copy()
+        return propagate_attitude(
+            self.q_ref_wxyz, self.w_ref_rad_s, (t_ns - self.stamp_ns) / NS_PER_S
+        )
+
+
+@dataclass(frozen=True)
+class GaitOutput:
+    """What one tick of the machine decides."""
+
+    t_ns: int
+    phase: GaitPhase
+    phase_changed: bool
+    jump_force_n: NDArray[np.float64]  # [N] world, zero when not thrusting
+    jump_torque_nm: NDArray[np.float64]  # [Nm] world, about the centre of mass
+    pushing_hemi: str | None  # "a" / "b" while thrusting
+    reference: AttitudeReference | None  # set on the ticks it changes
+    stance: tuple[bool, bool]  # hemi a, hemi b
+    hemi_height_m: tuple[float, float] = field(default=(0.0, 0.0))  # [m] world z of the bodies
+    jumps_done: int = 0  # thrusts completed
+    jumps_planned: int = 0
+    time_in_phase_ns: int = 0  # [ns]
+    jump_waiting: bool = False  # a jump is due but its hemi is not in stance
+
+    @property
+    def thrusting(self) -> bool:
+        """True while a planned thrust is being applied."""
+        return self.pushing_hemi is not None
+
+
+@dataclass
+class _Thrust:
+    index: int
+    hemi: str
+    end_ns: int
+
+
+# --- the machine -----------------------------------------------------------------------------
+class GaitPhaseMachine:
+    """Deterministic gait phase state machine; call :meth:`update` once per control tick."""
+
+    def __init__(self, config: GaitConfig) -> None:
+        self.config = config
+        self._phase: GaitPhase | None = None
+        self._phase_since_ns = 0
+        self._last_t_ns: int | None = None
+        self._next_jump = 0
+        self._jumps_done = 0
+        self._thrust: _Thrust | None = None
+        self._last_stance_ns: int | None = None
+        self._at_rest_since_ns: int | None = None
+        self._reference: AttitudeReference | None = None
+        self._landing_reference_set = False
+
+    @property
+    def phase(self) -> GaitPhase | None:
+        """The current phase (None before the first update)."""
+        return self._phase
+
+    @property
+    def reference(self) -> AttitudeReference | None:
+        """The current attitude reference (None before the first update)."""
+        return self._reference
+
+    @property
+    def jumps_done(self) -> int:
+        """Thrusts completed so far."""
+        return self._jumps_done
+
+    def update(  # noqa: PLR0917 (the positional signature shared with the closed loop)
+        self,
+        t_ns: int,
+        position_m: ArrayLike,
+        velocity_m_s: ArrayLike,
+        orientation_wxyz: ArrayLike,
+        angular_velocity_rad_s: ArrayLike,
+        radius_x_m: float,
+        contact_normal_force_n: ArrayLike,
+    ) -> GaitOutput:
+        """Advance to tick ``t_ns`` with the measured state.
+
+        ``velocity_m_s`` is the world-frame centre-of-mass velocity,
+        ``angular_velocity_rad_s`` the body rate, ``radius_x_m`` the distance of a
+        hemi body from the centre of mass along the tether, and
+        ``contact_normal_force_n`` the ground normal force on (hemi a, hemi b).
+        ``t_ns`` must increase from call to call; inputs must be finite
+        (``ValueError`` otherwise, the machine's state unchanged).
+        """
+        t_ns = int(t_ns)
+        if self._last_t_ns is not None and t_ns <= self._last_t_ns:
+            raise ValueError(f"t_ns {t_ns} does not follow the previous tick {self._last_t_ns}")
+        position = _vector3(position_m, "position_m")
+        velocity = _vector3(velocity_m_s, "velocity_m_s")
+        rate = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
+        q = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) == 0.0:
+            raise ValueError(f"orientation_wxyz: expected a finite quaternion, got {q.tolist()}")
+        q = q / np.linalg.norm(q)
+        radius_x = float(radius_x_m)
+        if not (math.isfinite(radius_x) and radius_x > 0.0):
+            raise ValueError(f"radius_x_m: must be finite and > 0, got {radius_x_m}")
+        normal = np.asarray(contact_normal_force_n, dtype=float).reshape(-1)
+        if normal.shape != (2,) or not np.all(np.isfinite(normal)):
+            raise ValueError(f"contact_normal_force_n: expected 2 finite numbers, got {normal}")
+
+        cfg = self.config
+        first = self._phase is None
+        self._last_t_ns = t_ns
+        stance = (
+            bool(normal[0] > cfg.stance_force_threshold_n),
+            bool(normal[1] > cfg.stance_force_threshold_n),
+        )
+        heights = tuple(
+            float(position[2] + hemi_offset_world(q, radius_x, hemi)[2]) for hemi in names.HEMIS
+        )
+        if any(stance):
+            self._last_stance_ns = t_ns
+        on_ground = self._last_stance_ns is not None and (
+            t_ns - self._last_stance_ns <= cfg.liftoff_debounce_ns
+        )
+
+        # Thrust: finish the running one, then start a due one whose hemi is in stance.
+        if self._thrust is not None and t_ns >= self._thrust.end_ns:
+            _LOG.debug("jump %d thrust ends at t = %d ns", self._thrust.index, t_ns)
+            self._thrust = None
+            self._jumps_done += 1
+        jump_waiting = False
+        if self._thrust is None and self._next_jump < len(cfg.jumps):
+            jump = cfg.jumps[self._next_jump]
+            if t_ns >= jump.time_ns:
+                hemi = _pushing_hemi(jump.hemi, stance, heights)
+                if hemi is None:
+                    jump_waiting = True
+                else:
+                    _LOG.debug(
+                        "jump %d starts at t = %d ns through hemi %s", self._next_jump, t_ns, hemi
+                    )
+                    self._thrust = _Thrust(self._next_jump, hemi, t_ns + jump.duration_ns)
+                    self._next_jump += 1
+
+        phase = self._next_phase(t_ns, stance, on_ground, velocity, rate)
+        changed = phase != self._phase
+        if changed:
+            _LOG.debug("gait phase %s -> %s at t = %d ns", self._phase, phase, t_ns)
+            self._phase = phase
+            self._phase_since_ns = t_ns
+
+        reference = None
+        landing = phase in _LANDING_PHASES
+        if first or (landing and not self._landing_reference_set):
+            reference = self._new_reference(t_ns, q, landing)
+            self._reference = reference
+
+        if self._thrust is not None:
+            jump = cfg.jumps[self._thrust.index]
+            force, torque = jump_wrench(jump.force_n, q, radius_x, self._thrust.hemi)
+            pushing: str | None = self._thrust.hemi
+        else:
+            force, torque, pushing = np.zeros(3), np.zeros(3), None
+        return GaitOutput(
+            t_ns=t_ns,
+            phase=phase,
+            phase_changed=changed,
+            jump_force_n=force,
+            jump_torque_nm=torque,
+            pushing_hemi=pushing,
+            reference=reference,
+            stance=stance,
+            hemi_height_m=(heights[0], heights[1]),
+            jumps_done=self._jumps_done,
+            jumps_planned=len(cfg.jumps),
+            time_in_phase_ns=t_ns - self._phase_since_ns,
+            jump_waiting=jump_waiting,
+        )
+
+    # -- internals -------------------------------------------------------------------------
+    def _new_reference(self, t_ns: int, q: NDArray[np.float64], landing: bool) -> AttitudeReference:
+        cfg = self.config
+        w_ref = cfg.landing_w_ref_rad_s if landing else cfg.w_ref_rad_s
+        if landing:
+            self._landing_reference_set = True
+        return AttitudeReference(
+            stamp_ns=t_ns,
+            w_ref_rad_s=np.array(w_ref, dtype=float),
+            q_ref_wxyz=q.copy(),
+            propagate=cfg.attitude_reference == "integrate_w_ref",
+        )
+
+    def _next_phase(
+        self,
+        t_ns: int,
+        stance: tuple[bool, bool],
+        on_ground: bool,
+        velocity: NDArray[np.float64],
+        rate: NDArray[np.float64],
+    ) -> GaitPhase:
+        cfg = self.config
+        if self._thrust is not None:
+            self._at_rest_since_ns = None
+            return GaitPhase.LAUNCH if self._thrust.index == 0 else GaitPhase.JUMP
+        if self._next_jump < len(cfg.jumps):
+            self._at_rest_since_ns = None
+            if not on_ground:
+                return GaitPhase.IN_FLIGHT
+            return GaitPhase.LAUNCH if self._next_jump == 0 else GaitPhase.JUMP
+        # No jump left.
+        if self._phase not in _LANDING_PHASES and self._jumps_done == 0 and not on_ground:
+            return GaitPhase.IN_FLIGHT  # a flight-only run: no jump was ever planned
+        speed = float(np.linalg.norm(velocity))
+        spin = float(np.linalg.norm(rate))
+        if self._phase == GaitPhase.LANDED:
+            disturbed = (
+                not on_ground
+                or speed > cfg.landed_exit_factor * cfg.landed_speed_m_s
+                or spin > cfg.landed_exit_factor * cfg.landed_angular_speed_rad_s
+            )
+            if not disturbed:
+                return GaitPhase.LANDED
+            self._at_rest_since_ns = None
+            return GaitPhase.LANDING
+        at_rest = (
+            any(stance) and speed < cfg.landed_speed_m_s and spin < cfg.landed_angular_speed_rad_s
+        )
+        if not at_rest:
+            self._at_rest_since_ns = None
+            return GaitPhase.LANDING
+        if self._at_rest_since_ns is None:
+            self._at_rest_since_ns = t_ns
+        if t_ns - self._at_rest_since_ns >= cfg.landed_dwell_ns:
+            return GaitPhase.LANDED
+        return GaitPhase.LANDING
+
+
+_LANDING_PHASES = (GaitPhase.LANDING, GaitPhase.LANDED)
+
+
+def _pushing_hemi(
+    planned: str, stance: tuple[bool, bool], heights: tuple[float, float]
+) -> str | None:
+    """The hemi that pushes now, or None when the planned one is not in stance."""
+    if planned != "auto":
+        return planned if stance[HEMI_INDEX[planned]] else None
+    in_stance = [hemi for hemi, s in zip(names.HEMIS, stance, strict=True) if s]
+    if not in_stance:
+        return None
+    return min(in_stance, key=lambda hemi: heights[HEMI_INDEX[hemi]])

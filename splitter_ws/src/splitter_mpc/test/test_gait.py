@@ -1,0 +1,442 @@
+"""Gait phase machine: phase sequences, jump wrench, thrust timing, references, validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from splitter_bringup.core.scenario import load_scenario
+from splitter_mpc.core.gait import (
+    GaitConfig,
+    GaitOutput,
+    GaitPhase,
+    GaitPhaseMachine,
+    PlannedJump,
+    jump_plan_from_arrays,
+    jump_plan_parameters,
+    jump_wrench,
+    propagate_attitude,
+    quaternion_multiply,
+)
+from splitter_msgs_py import names
+
+TICK_NS = 10_000_000  # [ns] control tick
+MS = 1_000_000  # [ns]
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+MOON_G = 9.80665 / 6.0  # [m/s^2]
+TOTAL_MASS_KG = 18.0  # [kg] 2 x (3.0 + 4 x 1.5)
+RADIUS_X_M = 2.8  # [m]
+STANCE_N = 20.0  # [N] a normal force well above the stance threshold
+
+
+def jump(time_s: float, hemi: str = "auto", duration_s: float = 0.3, force=(40.0, 0.0, 40.0)):
+    return PlannedJump(
+        time_ns=round(time_s * 1e9),
+        force_n=tuple(force),
+        duration_ns=round(duration_s * 1e9),
+        hemi=hemi,
+    )
+
+
+def tick(
+    machine: GaitPhaseMachine,
+    t_ns: int,
+    *,
+    normal=(0.0, 0.0),
+    velocity=(0.0, 0.0, 0.0),
+    rate=(0.0, 0.0, 0.0),
+    orientation=IDENTITY,
+    position=(0.0, 0.0, 0.45),
+    radius_x_m: float = RADIUS_X_M,
+) -> GaitOutput:
+    return machine.update(t_ns, position, velocity, orientation, rate, radius_x_m, normal)
+
+
+def axis_angle(axis, angle_rad: float) -> np.ndarray:
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    return np.concatenate(([math.cos(angle_rad / 2)], math.sin(angle_rad / 2) * axis))
+
+
+def rotate(q: np.ndarray, v) -> np.ndarray:
+    """q v q* by quaternion products (independent of the rotation matrix)."""
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return quaternion_multiply(quaternion_multiply(q, np.concatenate(([0.0], v))), conj)[1:]
+
+
+def distinct(phases: list[GaitPhase]) -> list[GaitPhase]:
+    return [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
+
+
+def test_phase_names_are_the_contract() -> None:
+    assert tuple(p.value for p in GaitPhase) == names.GAIT_PHASES
+
+
+def test_scripted_sequence_launch_flight_jump_landing_landed() -> None:
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(2.0, "auto")), landed_dwell_ns=300 * MS)
+    machine = GaitPhaseMachine(config)
+    log: list[GaitOutput] = []
+    for k in range(450):
+        t_ms = 10 * k
+        if t_ms < 100 or 1000 <= t_ms < 2100 or t_ms >= 3000:
+            normal = (STANCE_N, STANCE_N) if t_ms < 100 else (STANCE_N, 0.0)
+        else:
+            normal = (0.0, 0.0)
+        at_rest = t_ms >= 3200
+        velocity = (0.0, 0.0, 0.0) if at_rest else (1.0, 0.0, 0.2)
+        log.append(tick(machine, t_ms * MS, normal=normal, velocity=velocity))
+    phases = [out.phase for out in log]
+    assert distinct(phases) == [
+        GaitPhase.LAUNCH,
+        GaitPhase.IN_FLIGHT,
+        GaitPhase.JUMP,
+        GaitPhase.LANDING,
+        GaitPhase.LANDED,
+    ]
+
+    def first(phase: GaitPhase) -> int:
+        return next(out.t_ns for out in log if out.phase == phase) // MS
+
+    # Launch thrust 0-300 ms (held in the air), then flight; touchdown at 1.0 s waits
+    # in JUMP until 2.0 s, thrusts to 2.3 s, then Landing; at rest from 3.2 s + 0.3 s dwell.
+    assert first(GaitPhase.IN_FLIGHT) == 300
+    assert first(GaitPhase.JUMP) == 1000
+    assert first(GaitPhase.LANDING) == 2300
+    assert first(GaitPhase.LANDED) == 3500
+    thrust_ticks = [out.t_ns // MS for out in log if out.thrusting]
+    assert thrust_ticks == list(range(0, 300, 10)) + list(range(2000, 2300, 10))
+    assert {out.pushing_hemi for out in log if out.t_ns < 1 * 10**9 and out.thrusting} == {"b"}
+    assert {out.pushing_hemi for out in log if out.t_ns > 1 * 10**9 and out.thrusting} == {"a"}
+    assert log[-1].jumps_done == 2
+    assert sum(out.phase_changed for out in log) == 5  # the initial phase counts as a change
+
+
+def test_flight_only_run_stays_in_flight_with_one_reference() -> None:
+    config = GaitConfig(w_ref_rad_s=(0.0, 1.0, 0.0))
+    machine = GaitPhaseMachine(config)
+    q0 = axis_angle((1.0, 2.0, 3.0), 0.3)
+    outputs = [
+        tick(machine, k * TICK_NS, rate=(-0.3, -0.9, 0.9), orientation=q0, position=(0, 0, 10))
+        for k in range(800)
+    ]
+    assert {out.phase for out in outputs} == {GaitPhase.IN_FLIGHT}
+    assert all(not out.thrusting and not np.any(out.jump_force_n) for out in outputs)
+    references = [out.reference for out in outputs if out.reference is not None]
+    assert len(references) == 1
+    assert references[0].stamp_ns == 0
+    np.testing.assert_allclose(references[0].w_ref_rad_s, [0.0, 1.0, 0.0])
+    np.testing.assert_allclose(references[0].q_ref_wxyz, q0)
+
+
+def test_start_without_contact_is_in_flight_and_a_due_jump_waits_for_stance() -> None:
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "a"),)))
+    first = tick(machine, 0)
+    assert first.phase == GaitPhase.IN_FLIGHT
+    assert first.jump_waiting and not first.thrusting
+    # Only hemi b touches down: the planned hemi a cannot push yet.
+    out = tick(machine, 100 * MS, normal=(0.0, STANCE_N))
+    assert out.phase == GaitPhase.LAUNCH and out.jump_waiting and not out.thrusting
+    out = tick(machine, 110 * MS, normal=(STANCE_N, STANCE_N))
+    assert out.thrusting and out.pushing_hemi == "a" and not out.jump_waiting
+
+
+def test_auto_hemi_pushes_through_the_lower_hemi() -> None:
+    # Pitched 10 deg about +y: hemi a (+x) points down, so it is the lower one.
+    q = axis_angle((0.0, 1.0, 0.0), math.radians(10.0))
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "auto"),)))
+    out = tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=q)
+    assert out.hemi_height_m[0] < out.hemi_height_m[1]
+    assert out.pushing_hemi == "a"
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "auto"),)))
+    out = tick(machine, 0, normal=(0.0, STANCE_N), orientation=q)
+    assert out.pushing_hemi == "b"  # the only one in stance
+
+
+@pytest.mark.parametrize("hemi", ["a", "b"])
+def test_jump_torque_is_lever_cross_force_for_a_rotated_body(hemi: str) -> None:
+    q = axis_angle((0.3, -0.5, 0.8), 1.1)
+    radius_x = 1.7  # [m]
+    force = np.array([40.0, -5.0, 40.0])  # [N]
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, hemi, force=force),)))
+    out = tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=q, radius_x_m=radius_x)
+    sign = names.HEMI_SIGNS[hemi]
+    lever = rotate(q, [sign * radius_x, 0.0, 0.0])  # p_hemi - p_com, world
+    np.testing.assert_allclose(out.jump_force_n, force)
+    np.testing.assert_allclose(out.jump_torque_nm, np.cross(lever, force), atol=1e-12)
+    assert abs(out.jump_torque_nm @ force) < 1e-9
+    assert abs(out.jump_torque_nm @ lever) < 1e-9
+
+
+def test_lunar_launch_through_hemi_b_spins_about_plus_y() -> None:
+    # Level body, hemi b at (-2.8, 0, 0), F = (40, 0, 40) N: tau = (0, 2.8 * 40, 0) Nm.
+    force, torque = jump_wrench((40.0, 0.0, 40.0), IDENTITY, 2.8, "b")
+    np.testing.assert_allclose(force, [40.0, 0.0, 40.0])
+    np.testing.assert_allclose(torque, [0.0, 112.0, 0.0], atol=1e-12)
+
+
+def test_wrench_follows_the_attitude_during_the_thrust() -> None:
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "b", duration_s=0.5),)))
+    for k in range(50):
+        q = axis_angle((0.0, 1.0, 0.0), 0.01 * k)
+        out = tick(
+            machine, k * TICK_NS, normal=(0.0, STANCE_N) if k == 0 else (0.0, 0.0), orientation=q
+        )
+        assert out.thrusting
+        np.testing.assert_allclose(
+            out.jump_torque_nm, np.cross(rotate(q, [-RADIUS_X_M, 0, 0]), [40, 0, 40]), atol=1e-9
+        )
+
+
+@pytest.mark.parametrize(
+    ("time_s", "duration_s", "first_ms", "n_ticks"),
+    [(0.0, 0.6, 0, 60), (0.015, 0.6, 20, 60), (5.0, 0.6, 5000, 60), (1.0, 0.605, 1000, 61)],
+)
+def test_thrust_lasts_the_planned_duration_on_the_tick_grid(
+    time_s: float, duration_s: float, first_ms: int, n_ticks: int
+) -> None:
+    force = np.array([40.0, 0.0, 40.0])
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(time_s, "b", duration_s, force),)))
+    thrust_ms = []
+    impulse = np.zeros(3)  # [N s] the simulator holds each command for one tick
+    for k in range(700):
+        out = tick(machine, k * TICK_NS, normal=(0.0, STANCE_N))
+        if out.thrusting:
+            thrust_ms.append(10 * k)
+            impulse += out.jump_force_n * TICK_NS / 1e9
+    assert thrust_ms == [first_ms + 10 * i for i in range(n_ticks)]
+    np.testing.assert_allclose(impulse, force * n_ticks * 0.01, rtol=1e-12)
+
+
+def test_touchdown_before_the_next_jump_waits_and_a_bounce_is_flight() -> None:
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(3.0, "auto")), liftoff_debounce_ns=20 * MS)
+    machine = GaitPhaseMachine(config)
+    for k in range(31):  # launch thrust in stance then in the air
+        tick(machine, k * TICK_NS, normal=(0.0, STANCE_N) if k < 5 else (0.0, 0.0))
+    assert machine.phase == GaitPhase.IN_FLIGHT
+    assert tick(machine, 1000 * MS, normal=(STANCE_N, 0.0)).phase == GaitPhase.JUMP
+    # Contact flickers for one tick (shorter than the debounce): still on the ground.
+    assert tick(machine, 1010 * MS).phase == GaitPhase.JUMP
+    assert tick(machine, 1020 * MS, normal=(STANCE_N, 0.0)).phase == GaitPhase.JUMP
+    # A real bounce: no stance for longer than the debounce.
+    phases = [tick(machine, (1030 + 10 * k) * MS).phase for k in range(4)]
+    assert phases == [GaitPhase.JUMP, GaitPhase.JUMP, GaitPhase.IN_FLIGHT, GaitPhase.IN_FLIGHT]
+    assert not any(out.thrusting for out in [tick(machine, 1100 * MS, normal=(STANCE_N, 0))])
+
+
+def test_landed_needs_the_dwell_and_leaves_when_disturbed() -> None:
+    config = GaitConfig(
+        landed_speed_m_s=0.05,
+        landed_angular_speed_rad_s=0.05,
+        landed_dwell_ns=200 * MS,
+        landed_exit_factor=2.0,
+    )
+    machine = GaitPhaseMachine(config)
+    assert tick(machine, 0, velocity=(0.0, 0.0, -0.5)).phase == GaitPhase.IN_FLIGHT
+    assert tick(machine, 10 * MS, normal=(STANCE_N, 0), velocity=(0.3, 0, 0)).phase == (
+        GaitPhase.LANDING
+    )
+    phases = [
+        tick(machine, (20 + 10 * k) * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.04, 0)).phase
+        for k in range(22)
+    ]
+    assert phases.count(GaitPhase.LANDING) == 20  # 200 ms dwell from 20 ms
+    assert phases[-2:] == [GaitPhase.LANDED, GaitPhase.LANDED]
+    # Between the thresholds (hysteresis): stays LANDED; beyond exit_factor x: LANDING.
+    assert tick(machine, 300 * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.09, 0)).phase == (
+        GaitPhase.LANDED
+    )
+    assert tick(machine, 310 * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.11, 0)).phase == (
+        GaitPhase.LANDING
+    )
+
+
+def test_vertical_hopper_closed_loop_jumps_twice_and_comes_to_rest() -> None:
+    """Point mass on a spring-damper ground under lunar gravity, driven by the machine.
+
+    Launch at 0.5 s, touchdown (with a bounce), wait on the ground for the second
+    jump at 4 s, then land and come to rest: every phase in the paper's order.
+    """
+    stiffness, damping = 20000.0, 600.0  # [N/m], [N s/m] ground, per hemi
+    dt_ns = 5 * MS  # [ns] sim step; the machine runs every other step
+    z0 = 0.45  # [m] centre of mass height when the contact spring is unloaded
+    z, vz = z0 - TOTAL_MASS_KG * MOON_G / (2 * stiffness), 0.0  # resting on the ground
+    thrust = (0.0, 0.0, 60.0)  # [N]
+    config = GaitConfig(
+        jumps=(jump(0.5, "auto", 0.6, thrust), jump(4.0, "auto", 0.6, thrust)),
+        landed_dwell_ns=500 * MS,
+    )
+    machine = GaitPhaseMachine(config)
+    force_z = 0.0
+    log: list[GaitOutput] = []
+    peak_z = z
+    for step in range(3000):  # 15 s
+        t_ns = step * dt_ns
+        penetration = max(0.0, z0 - z)
+        per_hemi = max(0.0, stiffness * penetration - damping * vz) if penetration > 0 else 0.0
+        if t_ns % TICK_NS == 0:
+            out = machine.update(
+                t_ns, (0, 0, z), (0, 0, vz), IDENTITY, (0, 0, 0), RADIUS_X_M, (per_hemi, per_hemi)
+            )
+            force_z = out.jump_force_n[2]
+            log.append(out)
+        accel = (force_z + 2 * per_hemi) / TOTAL_MASS_KG - MOON_G
+        vz += accel * dt_ns / 1e9
+        z += vz * dt_ns / 1e9
+        peak_z = max(peak_z, z)
+    # The first touchdown bounces (the contact spring gives back part of the energy):
+    # IN_FLIGHT again until the robot settles in stance and waits for its jump.
+    assert distinct([out.phase for out in log]) == [
+        GaitPhase.LAUNCH,
+        GaitPhase.IN_FLIGHT,
+        GaitPhase.JUMP,
+        GaitPhase.IN_FLIGHT,
+        GaitPhase.JUMP,
+        GaitPhase.LANDING,
+        GaitPhase.LANDED,
+    ]
+    thrust_ms = [out.t_ns // MS for out in log if out.thrusting]
+    assert thrust_ms == list(range(500, 1100, 10)) + list(range(4000, 4600, 10))
+    touchdown = next(out for out in log if out.phase == GaitPhase.JUMP)
+    assert 1100 < touchdown.t_ns // MS < 4000 and any(touchdown.stance)
+    # 60 N for 0.6 s on 18 kg against 29.4 N weight: the robot clearly flies.
+    assert peak_z > z0 + 0.2
+    assert machine.jumps_done == 2
+    landed = next(out for out in log if out.phase == GaitPhase.LANDED)
+    assert abs(z - (z0 - TOTAL_MASS_KG * MOON_G / (2 * stiffness))) < 1e-3
+    assert landed.t_ns < 15 * 10**9
+
+
+def test_attitude_references_first_tick_and_landing() -> None:
+    q0 = axis_angle((0.0, 0.0, 1.0), 0.2)
+    config = GaitConfig(
+        jumps=(jump(0.0, "auto", 0.1),),
+        w_ref_rad_s=(0.0, 1.0, 0.0),
+        landing_w_ref_rad_s=(0.0, 0.0, 0.0),
+        attitude_reference="integrate_w_ref",
+    )
+    machine = GaitPhaseMachine(config)
+    out = tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=q0)
+    assert out.reference is not None and out.reference.propagate
+    np.testing.assert_allclose(out.reference.w_ref_rad_s, [0.0, 1.0, 0.0])
+    np.testing.assert_allclose(out.reference.q_ref_wxyz, q0)
+    # pi seconds at 1 rad/s about body y: q0 (x) (cos pi/2, 0, sin pi/2, 0).
+    np.testing.assert_allclose(
+        out.reference.attitude_at(round(math.pi * 1e9)),
+        quaternion_multiply(q0, [0.0, 0.0, 1.0, 0.0]),
+        atol=1e-9,
+    )
+    q_landing = axis_angle((1.0, 0.0, 0.0), 0.5)
+    outputs = [tick(machine, k * TICK_NS, orientation=q_landing) for k in range(1, 20)]
+    landing = [out for out in outputs if out.reference is not None]
+    assert len(landing) == 1 and landing[0].phase == GaitPhase.LANDING
+    assert landing[0].t_ns == 100 * MS
+    np.testing.assert_allclose(landing[0].reference.w_ref_rad_s, [0.0, 0.0, 0.0])
+    np.testing.assert_allclose(landing[0].reference.q_ref_wxyz, q_landing)
+    np.testing.assert_allclose(machine.reference.attitude_at(10**10), q_landing)
+
+
+def test_initial_mode_holds_the_first_attitude() -> None:
+    q0 = axis_angle((1.0, 1.0, 0.0), 0.4)
+    machine = GaitPhaseMachine(GaitConfig(attitude_reference="initial"))
+    reference = tick(machine, 0, orientation=q0, position=(0, 0, 10)).reference
+    assert reference is not None and not reference.propagate
+    np.testing.assert_allclose(reference.attitude_at(5 * 10**9), q0)
+
+
+def test_propagate_attitude_matches_closed_form_and_keeps_unit_norm() -> None:
+    q = propagate_attitude(IDENTITY, (0.0, 0.0, 2.0), 0.25)  # 0.5 rad about z
+    np.testing.assert_allclose(q, axis_angle((0, 0, 1), 0.5), atol=1e-15)
+    q = IDENTITY
+    for _ in range(1000):
+        q = propagate_attitude(q, (0.3, -0.9, 0.9), 0.01)
+    assert abs(np.linalg.norm(q) - 1.0) < 1e-12
+
+
+def test_bad_inputs_raise_and_leave_the_machine_unchanged() -> None:
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "b"),)))
+    tick(machine, 0, normal=(0.0, STANCE_N))
+    with pytest.raises(ValueError, match="velocity_m_s"):
+        tick(machine, 10 * MS, velocity=(math.nan, 0, 0))
+    with pytest.raises(ValueError, match="contact_normal_force_n"):
+        tick(machine, 10 * MS, normal=(math.inf, 0.0))
+    with pytest.raises(ValueError, match="radius_x_m"):
+        tick(machine, 10 * MS, radius_x_m=0.0)
+    with pytest.raises(ValueError, match="does not follow"):
+        tick(machine, 0)
+    out = tick(machine, 10 * MS)  # the rejected calls did not consume tick 10 ms
+    assert out.thrusting and out.phase == GaitPhase.LAUNCH
+
+
+def test_same_inputs_give_identical_outputs() -> None:
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(1.0, "auto")))
+    rng = np.random.default_rng(7)
+    inputs = [
+        (
+            k * TICK_NS,
+            rng.normal(size=3),
+            axis_angle(rng.normal(size=3), k * 0.01),
+            rng.uniform(0, 30, 2),
+        )
+        for k in range(200)
+    ]
+    runs = []
+    for _ in range(2):
+        machine = GaitPhaseMachine(config)
+        runs.append(
+            [
+                (o.phase, o.jump_force_n.tolist(), o.jump_torque_nm.tolist())
+                for o in (
+                    tick(machine, t, normal=n, velocity=v, orientation=q) for t, v, q, n in inputs
+                )
+            ]
+        )
+    assert runs[0] == runs[1]
+    assert GaitPhase.JUMP in {phase for phase, _, _ in runs[0]}
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"stance_force_threshold_n": 0.0}, "stance_force_threshold_n"),
+        ({"landed_exit_factor": 0.5}, "landed_exit_factor"),
+        ({"w_ref_rad_s": (0.0, math.nan, 0.0)}, "w_ref_rad_s"),
+        ({"attitude_reference": "spin"}, "attitude_reference"),
+        ({"jumps": (jump(1.0, "b"), jump(1.1, "a"))}, "jump 1"),
+        ({"jumps": (jump(0.0, "c"),)}, "jump 0: hemi"),
+    ],
+)
+def test_invalid_config_names_the_field(kwargs: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=field):
+        GaitConfig(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("arrays", "parameter"),
+    [
+        (([0.0], [40.0, 0.0], [0.6], ["b"]), "jump_forces_n"),
+        (([0.0], [40.0, 0.0, 40.0], [], ["b"]), "jump_durations_s"),
+        (([0.0], [40.0, 0.0, 40.0], [0.6], ["x"]), "jump_hemis"),
+        (([-1.0], [40.0, 0.0, 40.0], [0.6], ["b"]), "jump_times_s"),
+        (([0.0], [40.0, 0.0, 40.0], [0.0], ["b"]), "jump_durations_s"),
+        (([0.0, 0.5], [40.0, 0.0, 40.0] * 2, [0.6, 0.6], ["b", "a"]), "jump_times_s"),
+        (([0.0], [40.0, math.nan, 40.0], [0.6], ["b"]), "jump_forces_n"),
+    ],
+)
+def test_invalid_plan_arrays_name_the_parameter(arrays: tuple, parameter: str) -> None:
+    with pytest.raises(ValueError, match=parameter):
+        jump_plan_from_arrays(*arrays)
+
+
+def test_scenario_plan_round_trips_through_parameters() -> None:
+    scenario = load_scenario("lunar_jumping")
+    params = jump_plan_parameters(scenario.jumps)
+    plan = jump_plan_from_arrays(
+        params["jump_times_s"],
+        params["jump_forces_n"],
+        params["jump_durations_s"],
+        params["jump_hemis"],
+    )
+    assert plan == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
+    assert [j.hemi for j in plan] == ["b", "auto"]
+    assert plan[1].time_ns == 5_000_000_000 and plan[0].duration_ns == 600_000_000
