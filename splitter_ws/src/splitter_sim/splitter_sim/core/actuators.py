@@ -1,0 +1,193 @@
+"""Joint and tether actuators: limits, command validation and a rate/acceleration-limited servo.
+
+The 25 actuated coordinates (``names.JOINT_NAMES`` order: 8 limbs x (hip
+abduction, hip pitch, knee), then the prismatic tether) follow their commands
+as position servos whose velocity and acceleration never exceed the hardware
+limits of :class:`~splitter_sim.core.model.RobotModel` (actuator output speed
+800 RPM, peak torque over the limb-tip inertia, reel speed and start-up).
+
+Within one simulation step the servo acceleration is constant, so the joint
+trajectory is an exact quadratic in time and the integrator can evaluate the
+shape at any of its stage times. The acceleration is chosen by a discrete-time
+law that (1) brakes along the discrete time-optimal braking curve, so the joint
+stops on its target without overshoot, and (2) switches to a two-step deadbeat
+when that is reachable within the limits, so it arrives exactly, at rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_sim.core.model import RobotModel
+
+N_JOINTS = 25
+TETHER_INDEX = 24
+# A command's velocity feed-forward extrapolates its position target for at most
+# this long; a stale command then holds position (no drift into a limit).
+COMMAND_EXTRAPOLATION_S = 0.02  # [s] two control periods of 10 ms
+ARRIVAL_TOLERANCE = 1e-12  # [rad or m] / [rad/s or m/s]: snap to the target below this
+
+
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Per-joint bounds, arrays of length 25 in ``names.JOINT_NAMES`` order."""
+
+    position_min: NDArray[np.float64]  # [rad] / [m] tether
+    position_max: NDArray[np.float64]  # [rad] / [m]
+    speed_max: NDArray[np.float64]  # [rad/s] / [m/s]
+    acceleration_max: NDArray[np.float64]  # [rad/s^2] / [m/s^2]
+
+
+def actuator_limits(model: RobotModel) -> ActuatorLimits:
+    """Joint and tether limits of ``model``."""
+    lo = np.empty(N_JOINTS)
+    hi = np.empty(N_JOINTS)
+    for limb in range(8):
+        k = 3 * limb
+        lo[k], hi[k] = -model.hip_abduction_limit_rad, model.hip_abduction_limit_rad
+        lo[k + 1], hi[k + 1] = -model.hip_pitch_limit_rad, model.hip_pitch_limit_rad
+        lo[k + 2], hi[k + 2] = model.knee_min_rad, model.knee_max_rad
+    lo[TETHER_INDEX], hi[TETHER_INDEX] = model.tether_length_min_m, model.tether_length_max_m
+    speed = np.full(N_JOINTS, model.joint_speed_max_rad_s)
+    speed[TETHER_INDEX] = model.tether_speed_max_m_s
+    accel = np.full(N_JOINTS, model.joint_acceleration_max_rad_s2)
+    accel[TETHER_INDEX] = model.tether_acceleration_max_m_s2
+    return ActuatorLimits(lo, hi, speed, accel)
+
+
+def validate_joint_command(
+    limits: ActuatorLimits,
+    position: ArrayLike,
+    velocity: ArrayLike | None = None,
+    joint_names: tuple[str, ...] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(position, velocity) as float arrays, or ``ValueError`` naming the offending joint.
+
+    Positions must lie within the joint / tether range, velocities within the
+    actuator speed; everything finite, 25 values each.
+    """
+    q = np.array(position, dtype=float).reshape(-1)
+    qd = np.zeros(N_JOINTS) if velocity is None else np.array(velocity, dtype=float).reshape(-1)
+    for label, arr in (("position", q), ("velocity", qd)):
+        if arr.shape != (N_JOINTS,):
+            raise ValueError(f"joint command {label}: expected {N_JOINTS} values, got {arr.size}")
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise ValueError(
+                f"joint command {label} of {_name(bad[0], joint_names)} is not finite "
+                f"({arr[bad[0]]})"
+            )
+    out = np.flatnonzero((q < limits.position_min) | (q > limits.position_max))
+    if out.size:
+        i = out[0]
+        raise ValueError(
+            f"joint command position of {_name(i, joint_names)} = {q[i]:.6g} is outside "
+            f"[{limits.position_min[i]:.6g}, {limits.position_max[i]:.6g}]"
+        )
+    fast = np.flatnonzero(np.abs(qd) > limits.speed_max)
+    if fast.size:
+        i = fast[0]
+        raise ValueError(
+            f"joint command velocity of {_name(i, joint_names)} = {qd[i]:.6g} exceeds "
+            f"the actuator speed {limits.speed_max[i]:.6g}"
+        )
+    return q, qd
+
+
+def _name(index: int, joint_names: tuple[str, ...] | None) -> str:
+    return f"joint {index}" if joint_names is None else f"'{joint_names[index]}'"
+
+
+def braking_speed(distance: NDArray[np.float64], accel_max: NDArray[np.float64], dt: float):
+    """Largest speed from which a discrete servo stops within ``distance``.
+
+    Braking at ``a`` from ``v = n a dt`` covers ``a dt^2 n (n + 1) / 2`` over ``n``
+    steps; solving for ``v`` gives ``a dt (sqrt(2 d / (a dt^2) + 1/4) - 1/2)``.
+    """
+    a_dt = accel_max * dt
+    return a_dt * (np.sqrt(2.0 * distance / (a_dt * dt) + 0.25) - 0.5)
+
+
+def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
+    q: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    q_target: NDArray[np.float64],
+    qd_target: NDArray[np.float64],
+    limits: ActuatorLimits,
+    dt: float,
+) -> NDArray[np.float64]:
+    """Constant acceleration for the coming step of every actuator.
+
+    The target moves at ``qd_target``; in error coordinates ``e = q_target - q``
+    the law brings ``(e, de/dt)`` to ``(0, 0)``. The two-step deadbeat
+    ``a0 = (e + 3/2 de dt) / dt^2`` (then ``a1 = de/dt - a0``) is used when both
+    accelerations and the intermediate speed respect the limits; otherwise the
+    servo accelerates toward the discrete braking curve, saturated.
+    """
+    a_max = limits.acceleration_max
+    v_max = limits.speed_max
+    e = q_target - q
+    de = qd_target - qd
+    a0 = (e + 1.5 * de * dt) / (dt * dt)
+    a1 = de / dt - a0
+    deadbeat = (np.abs(a0) <= a_max) & (np.abs(a1) <= a_max) & (np.abs(qd + a0 * dt) <= v_max)
+    v_des = np.clip(qd_target + np.sign(e) * braking_speed(np.abs(e), a_max, dt), -v_max, v_max)
+    a_track = np.clip((v_des - qd) / dt, -a_max, a_max)
+    return np.where(deadbeat, a0, a_track)
+
+
+def command_target(
+    position: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    age_s: float,
+    limits: ActuatorLimits,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Target (position, velocity) of a command ``age_s`` old: extrapolated, then held."""
+    if not velocity.any():
+        return position, velocity
+    horizon = min(max(age_s, 0.0), COMMAND_EXTRAPOLATION_S)
+    target = np.clip(position + velocity * horizon, limits.position_min, limits.position_max)
+    moving = (age_s < COMMAND_EXTRAPOLATION_S) & (target > limits.position_min)
+    moving &= target < limits.position_max
+    return target, np.where(moving, velocity, 0.0)
+
+
+def advance(
+    q: NDArray[np.float64], qd: NDArray[np.float64], qdd: NDArray[np.float64], tau: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Joint positions and velocities ``tau`` seconds into a constant-acceleration step."""
+    return q + qd * tau + 0.5 * qdd * (tau * tau), qd + qdd * tau
+
+
+def snap_arrived(
+    q: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    q_target: NDArray[np.float64],
+    qd_target: NDArray[np.float64],
+) -> bool:
+    """Put joints within round-off of a resting target exactly on it; True if any moved."""
+    arrived = (
+        (qd_target == 0.0)
+        & (np.abs(q - q_target) <= ARRIVAL_TOLERANCE)
+        & (np.abs(qd) <= ARRIVAL_TOLERANCE)
+        & ((q != q_target) | (qd != 0.0))
+    )
+    if not arrived.any():
+        return False
+    q[arrived] = q_target[arrived]
+    qd[arrived] = 0.0
+    return True
+
+
+def max_abs_ratio(values: NDArray[np.float64], bounds: NDArray[np.float64]) -> float:
+    """max |values| / bounds: 1.0 means a limit is reached exactly."""
+    return float(np.max(np.abs(values) / bounds)) if values.size else 0.0
+
+
+def finite(values: NDArray[np.float64]) -> bool:
+    """All entries finite."""
+    return bool(np.all(np.isfinite(values))) and not math.isnan(float(values.sum()))

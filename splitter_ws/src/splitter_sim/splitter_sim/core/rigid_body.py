@@ -1,0 +1,266 @@
+"""Equations of motion of the morphing ten-mass body (paper section V, DESIGN.md section 3).
+
+State (14 plain floats, see :data:`STATE_SIZE`):
+``p`` (3) COM position, world [m]; ``v`` (3) COM velocity, world [m/s];
+``q`` (4) attitude quaternion world <- base, scalar first; ``L`` (3) angular
+momentum about the COM in body coordinates [kg m^2/s]; ``W`` the actuator work
+done so far [J] (integrated alongside so it has the integrator's accuracy).
+
+Rotation, body frame, with the shape moving relative to the body::
+
+    L = I w + h,         h = sum m_i r_i x dr_i   (relative angular momentum)
+    dL/dt + w x L = tau                           (= d/dt(I w + h) + w x (I w + h))
+
+Carrying ``L`` rather than ``w`` makes the derivative need only ``I`` and ``h``
+at the stage time; ``w = I^-1 (L - h)``. In torque-free flight the world-frame
+momentum ``R L`` is then constant and the gyroscopic term ``- w x L`` keeps
+``|L|`` fixed. ``gyroscopic_sign = +1`` flips it (the sign error of the paper's
+discrete MPC model): tests use it to show that a world-H check catches the error.
+
+Translation: ``M dv/dt = F - B v - M g`` (paper eq. "linear").
+
+Actuator power (rate of work of the morphing actuators on the system, the
+internal forces times the masses' velocities relative to the body)::
+
+    P = dw/dt . h - 1/2 w' (dI/dt) w + d/dt(1/2 sum m |dr|^2) - sum f_ext_i . dr_i
+
+so that the kinetic energy about the COM, ``T = 1/2 w'Iw + w.h + 1/2 sum m|dr|^2``,
+obeys ``dT/dt = P + (power of external forces about the COM)``. With ``h = 0``
+this is the DESIGN.md formula ``dE/dt = w.tau - 1/2 w'(dI/dt)w``. Gyroscopic
+forces do no work (``w . (w x L) = 0``), so the energy balance holds whatever
+the gyroscopic sign: only world-frame angular momentum detects that error.
+"""
+
+from __future__ import annotations
+
+import math
+
+from splitter_sim.core.contact import ground_contact_force
+from splitter_sim.core.shape import N_MASSES, Shape
+
+STATE_SIZE = 14
+P, V, Q, L, WORK = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), 13
+
+
+class DynamicsParameters:
+    """Constants and step-wise inputs of the derivative (plain attributes, set by the simulator)."""
+
+    __slots__ = (
+        "contact",
+        "contact_damping",
+        "contact_stiffness",
+        "damping",
+        "friction_coefficient",
+        "friction_damping",
+        "gravity",
+        "gyroscopic_sign",
+        "thrust",
+        "total_mass",
+    )
+
+    def __init__(
+        self,
+        *,
+        total_mass: float,
+        damping: float,
+        gravity: float,
+        contact_stiffness: float,
+        contact_damping: float,
+        friction_coefficient: float,
+        friction_damping: float,
+        gyroscopic_sign: float = -1.0,
+    ) -> None:
+        self.total_mass = total_mass  # [kg]
+        self.damping = damping  # B [N s/m]
+        self.gravity = gravity  # [m/s^2] along -z
+        self.contact_stiffness = contact_stiffness  # [N/m]
+        self.contact_damping = contact_damping  # [N s/m]
+        self.friction_coefficient = friction_coefficient  # [-]
+        self.friction_damping = friction_damping  # [N s/m]
+        self.gyroscopic_sign = gyroscopic_sign  # -1: dL/dt = tau - w x L (physics)
+        self.contact = False  # evaluate ground contact in this step
+        # Jump thrust for this step: tuples (mass index, fx, fy, fz) world [N].
+        self.thrust: tuple[tuple[int, float, float, float], ...] = ()
+
+
+def rotation_matrix(qw: float, qx: float, qy: float, qz: float) -> tuple[float, ...]:
+    """Row-major world <- base rotation of a (not necessarily unit) quaternion."""
+    n = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
+    xy, xz, yz = qx * qy, qx * qz, qy * qz
+    wx, wy, wz = qw * qx, qw * qy, qw * qz
+    return (
+        (ww + xx - yy - zz) * n,
+        2.0 * (xy - wz) * n,
+        2.0 * (xz + wy) * n,
+        2.0 * (xy + wz) * n,
+        (ww - xx + yy - zz) * n,
+        2.0 * (yz - wx) * n,
+        2.0 * (xz - wy) * n,
+        2.0 * (yz + wx) * n,
+        (ww - xx - yy + zz) * n,
+    )
+
+
+def angular_velocity(shape: Shape, lx: float, ly: float, lz: float) -> tuple[float, float, float]:
+    """w = I^-1 (L - h), body frame [rad/s]."""
+    a, b, c, d, e, f = shape.inertia_inv
+    hx, hy, hz = shape.h
+    x, y, z = lx - hx, ly - hy, lz - hz
+    return a * x + d * y + e * z, d * x + b * y + f * z, e * x + f * y + c * z
+
+
+def state_derivative(
+    s: list[float] | tuple[float, ...],
+    shape: Shape,
+    prm: DynamicsParameters,
+    out: dict | None = None,
+) -> list[float]:
+    """Time derivative of the 14-float state with the shape at the same instant.
+
+    ``out``, when given, receives the intermediate quantities (forces per mass,
+    angular velocity and acceleration, rotation) for outputs: one code path for
+    integration and reporting.
+    """
+    _, _, pz, vx, vy, vz, qw, qx, qy, qz, lx, ly, lz = s[:13]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
+    wx, wy, wz = angular_velocity(shape, lx, ly, lz)
+    fx = fy = fz = 0.0  # external non-gravity force, world [N]
+    tx = ty = tz = 0.0  # external torque about the COM, body [N m]
+    p_rel = 0.0  # power of external forces on the relative motion [W]
+    rx, ry, rz = shape.rx, shape.ry, shape.rz
+    dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
+    forces = [] if out is not None else None
+    for i, gx, gy, gz in prm.thrust:
+        bx = r00 * gx + r10 * gy + r20 * gz
+        by = r01 * gx + r11 * gy + r21 * gz
+        bz = r02 * gx + r12 * gy + r22 * gz
+        fx += gx
+        fy += gy
+        fz += gz
+        tx += ry[i] * bz - rz[i] * by
+        ty += rz[i] * bx - rx[i] * bz
+        tz += rx[i] * by - ry[i] * bx
+        p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
+    if prm.contact:
+        k, c = prm.contact_stiffness, prm.contact_damping
+        mu, ct = prm.friction_coefficient, prm.friction_damping
+        for i in range(N_MASSES):
+            x, y, z = rx[i], ry[i], rz[i]
+            height = pz + r20 * x + r21 * y + r22 * z
+            if height >= 0.0:
+                continue
+            # velocity of the mass: v + R (w x r + dr)
+            ux = wy * z - wz * y + dvx[i]
+            uy = wz * x - wx * z + dvy[i]
+            uz = wx * y - wy * x + dvz[i]
+            mvx = vx + r00 * ux + r01 * uy + r02 * uz
+            mvy = vy + r10 * ux + r11 * uy + r12 * uz
+            mvz = vz + r20 * ux + r21 * uy + r22 * uz
+            gx, gy, gz = ground_contact_force(height, mvx, mvy, mvz, k, c, mu, ct)
+            if gz == 0.0:
+                continue
+            bx = r00 * gx + r10 * gy + r20 * gz
+            by = r01 * gx + r11 * gy + r21 * gz
+            bz = r02 * gx + r12 * gy + r22 * gz
+            fx += gx
+            fy += gy
+            fz += gz
+            tx += y * bz - z * by
+            ty += z * bx - x * bz
+            tz += x * by - y * bx
+            p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
+            if forces is not None:
+                forces.append((i, gx, gy, gz, height))
+    m_inv = 1.0 / prm.total_mass
+    b = prm.damping
+    ax = (fx - b * vx) * m_inv
+    ay = (fy - b * vy) * m_inv
+    az = (fz - b * vz) * m_inv - prm.gravity
+    g = prm.gyroscopic_sign
+    dlx = tx + g * (wy * lz - wz * ly)
+    dly = ty + g * (wz * lx - wx * lz)
+    dlz = tz + g * (wx * ly - wy * lx)
+    if shape.moving or out is not None:
+        # dw/dt = I^-1 (dL/dt - (dI/dt) w - dh/dt)
+        ia, ib, ic, i_d, ie, i_f = shape.inertia_dot
+        hdx, hdy, hdz = shape.h_dot
+        ex = dlx - (ia * wx + i_d * wy + ie * wz) - hdx
+        ey = dly - (i_d * wx + ib * wy + i_f * wz) - hdy
+        ez = dlz - (ie * wx + i_f * wy + ic * wz) - hdz
+        a, bb, cc, d, e, f = shape.inertia_inv
+        awx = a * ex + d * ey + e * ez
+        awy = d * ex + bb * ey + f * ez
+        awz = e * ex + f * ey + cc * ez
+        hx, hy, hz = shape.h
+        w_idot_w = (
+            ia * wx * wx
+            + ib * wy * wy
+            + ic * wz * wz
+            + 2.0 * (i_d * wx * wy + ie * wx * wz + i_f * wy * wz)
+        )
+        power = (
+            awx * hx
+            + awy * hy
+            + awz * hz
+            - 0.5 * w_idot_w
+            + shape.kinetic_energy_relative_dot
+            - p_rel
+        )
+        if out is not None:
+            out["rotation"] = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
+            out["angular_velocity"] = (wx, wy, wz)
+            out["angular_acceleration"] = (awx, awy, awz)
+            out["force_world"] = (fx, fy, fz)
+            out["torque_body"] = (tx, ty, tz)
+            out["acceleration_world"] = (ax, ay, az)
+            out["contacts"] = forces
+            out["actuator_power"] = power
+    else:
+        power = 0.0
+    return [
+        vx,
+        vy,
+        vz,
+        ax,
+        ay,
+        az,
+        -0.5 * (qx * wx + qy * wy + qz * wz),
+        0.5 * (qw * wx + qy * wz - qz * wy),
+        0.5 * (qw * wy + qz * wx - qx * wz),
+        0.5 * (qw * wz + qx * wy - qy * wx),
+        dlx,
+        dly,
+        dlz,
+        power,
+    ]
+
+
+def rk4_step(  # noqa: PLR0917  (hot path)
+    s: list[float],
+    h: float,
+    prm: DynamicsParameters,
+    shape_start: Shape,
+    shape_mid: Shape,
+    shape_end: Shape,
+) -> list[float]:
+    """One classical RK4 step of length ``h``; the shape is known at the three stage times.
+
+    The quaternion is renormalised after the step (unit norm kept exactly).
+    """
+    half = 0.5 * h
+    k1 = state_derivative(s, shape_start, prm)
+    k2 = state_derivative([a + half * b for a, b in zip(s, k1, strict=True)], shape_mid, prm)
+    k3 = state_derivative([a + half * b for a, b in zip(s, k2, strict=True)], shape_mid, prm)
+    k4 = state_derivative([a + h * b for a, b in zip(s, k3, strict=True)], shape_end, prm)
+    sixth = h / 6.0
+    out = [
+        a + sixth * (b1 + 2.0 * (b2 + b3) + b4)
+        for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
+    ]
+    n = 1.0 / math.sqrt(out[6] * out[6] + out[7] * out[7] + out[8] * out[8] + out[9] * out[9])
+    out[6] *= n
+    out[7] *= n
+    out[8] *= n
+    out[9] *= n
+    return out

@@ -1,0 +1,510 @@
+"""The SPLITTER simulator: a morphing ten-mass rigid body with ground contact (ROS-free).
+
+Paper section V and DESIGN.md section 3. One :class:`Simulator` owns the state
+of the body (COM position and velocity, attitude, body angular momentum), the
+25 actuators (joint / tether servos with rate and acceleration limits) and the
+latest commands; :meth:`Simulator.step` advances by ``SimConfig.dt_s`` with
+classical RK4 and :meth:`Simulator.state` returns a frozen :class:`SimState`.
+
+Numerics (why the defaults are what they are):
+
+* Flight: one RK4 step of 5 ms (the paper's). The joints move with constant
+  acceleration within a step, so the shape (mass positions, inertia tensor,
+  relative momentum) is evaluated exactly at every RK4 stage time.
+* Contact: when a mass can reach the ground within the coming step, the step is
+  split into ``contact_substeps`` RK4 sub-steps. The default contact (50 kN/m,
+  1 kN s/m per mass) has a natural frequency of ~130 rad/s on the smallest
+  effective mass of a contact point (~3 kg, a limb tip rolling the body about
+  its thin x axis); 4 sub-steps of 1.25 ms keep ``omega h ~ 0.16`` and the
+  damping and friction slopes well inside RK4's stability region, while a
+  single 5 ms step would be at ``omega h ~ 0.65`` with a stiff friction slope.
+  Penetration at rest stays at millimetres (18 kg on three feet under Earth
+  gravity: 1.2 mm; Moon: 0.2 mm).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_sim.core import actuators
+from splitter_sim.core.kinematics import joint_positions_from_radii, radii_from_joint_positions
+from splitter_sim.core.model import STANDARD_GRAVITY, RobotModel
+from splitter_sim.core.rigid_body import (
+    DynamicsParameters,
+    rk4_step,
+    rotation_matrix,
+    state_derivative,
+)
+from splitter_sim.core.shape import HEMI_OF_MASS, Shape, ShapeKinematics
+
+if TYPE_CHECKING:
+    from splitter_bringup.core.scenario import Scenario
+
+HEMI_BODY_INDEX = (0, 5)  # mass index of each hemi body (a, b)
+HEMI_LABELS = ("a", "b")
+
+
+def _positive(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"SimConfig.{name} must be finite and > 0, got {value!r}")
+
+
+def _non_negative(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f"SimConfig.{name} must be finite and >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Integrator, gravity and contact settings; validated on construction.
+
+    Contact defaults: stiffness and damping per lumped mass (a foot) give a
+    critically damped contact on ~6 kg, i.e. about the effective mass of a foot
+    of this body; ``friction_coefficient`` 0.8 is regolith-like (lunar soil
+    friction angles are 30-50 deg, tan = 0.6-1.2). ``friction_damping_n_s_m`` is the
+    slope of the regularised Coulomb law below the cone (creep of 1 mm/s per
+    2 N of tangential load). ``thrust_stroke_m`` is the leg push-off stroke: a
+    hemi pushes (jump thrust) while its lowest mass is within this height of the
+    ground, the limb length the paper sizes the push-off with (section IV).
+    """
+
+    dt_s: float = 0.005  # [s] paper Table I
+    gravity_m_s2: float = 0.0  # [m/s^2] magnitude, along -z world
+    ground_contact: bool = True
+    contact_stiffness_n_m: float = 5.0e4  # [N/m] per mass
+    contact_damping_n_s_m: float = 1.0e3  # [N s/m] per mass
+    friction_coefficient: float = 0.8  # [-] Coulomb mu
+    friction_damping_n_s_m: float = 2.0e3  # [N s/m] regularisation slope below the cone
+    contact_substeps: int = 4  # RK4 sub-steps per step while a mass can touch the ground
+    thrust_stroke_m: float = 0.4  # [m] leg push-off stroke (paper's 0.4 m limb)
+
+    def __post_init__(self) -> None:
+        _positive("dt_s", self.dt_s)
+        if self.dt_s > 0.1:
+            raise ValueError(f"SimConfig.dt_s must be <= 0.1 s, got {self.dt_s!r}")
+        if round(self.dt_s * 1e9) < 1:
+            raise ValueError("SimConfig.dt_s must be at least 1 ns")
+        _non_negative("gravity_m_s2", self.gravity_m_s2)
+        if not isinstance(self.ground_contact, bool):
+            raise ValueError(
+                f"SimConfig.ground_contact must be a bool, got {self.ground_contact!r}"
+            )
+        _positive("contact_stiffness_n_m", self.contact_stiffness_n_m)
+        _non_negative("contact_damping_n_s_m", self.contact_damping_n_s_m)
+        _non_negative("friction_coefficient", self.friction_coefficient)
+        _positive("friction_damping_n_s_m", self.friction_damping_n_s_m)
+        if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
+            raise ValueError(
+                "SimConfig.contact_substeps must be an int in [1, 100], "
+                f"got {self.contact_substeps!r}"
+            )
+        _non_negative("thrust_stroke_m", self.thrust_stroke_m)
+
+    @property
+    def dt_ns(self) -> int:
+        """Step length in integer nanoseconds."""
+        return round(self.dt_s * 1e9)
+
+
+def _vector(name: str, value: ArrayLike, size: int) -> NDArray[np.float64]:
+    try:
+        arr = np.array(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"InitialState.{name}: expected {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,):
+        raise ValueError(f"InitialState.{name}: expected {size} numbers, got {arr.size}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"InitialState.{name} must be finite, got {arr}")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Where the body starts; joints start at the radii's joint positions, at rest."""
+
+    position_m: ArrayLike = (0.0, 0.0, 0.0)  # [m] world, centre of mass
+    velocity_m_s: ArrayLike = (0.0, 0.0, 0.0)  # [m/s] world
+    orientation_wxyz: ArrayLike = (1.0, 0.0, 0.0, 0.0)  # world <- base
+    angular_velocity_rad_s: ArrayLike = (0.0, 0.0, 0.0)  # [rad/s] body
+    radii_m: ArrayLike = (2.8, 0.2, 0.2)  # [m] r_x, r_y, r_z (paper Table I)
+
+    def __post_init__(self) -> None:
+        for name, size in (
+            ("position_m", 3),
+            ("velocity_m_s", 3),
+            ("orientation_wxyz", 4),
+            ("angular_velocity_rad_s", 3),
+            ("radii_m", 3),
+        ):
+            object.__setattr__(self, name, _vector(name, getattr(self, name), size))
+        q = np.asarray(self.orientation_wxyz)
+        norm = float(np.linalg.norm(q))
+        if abs(norm - 1.0) > 1e-6:
+            raise ValueError(
+                f"InitialState.orientation_wxyz must be a unit quaternion, |q| = {norm}"
+            )
+        object.__setattr__(self, "orientation_wxyz", _vector("orientation_wxyz", q / norm, 4))
+
+
+@dataclass(frozen=True)
+class SimState:
+    """Frozen snapshot of the simulator at ``t_ns`` (arrays are read-only copies)."""
+
+    t_ns: int
+    position_m: NDArray[np.float64]  # (3,) world COM [m]
+    velocity_m_s: NDArray[np.float64]  # (3,) world [m/s]
+    orientation_wxyz: NDArray[np.float64]  # (4,) world <- base
+    angular_velocity_rad_s: NDArray[np.float64]  # (3,) body [rad/s]
+    linear_acceleration_m_s2: NDArray[np.float64]  # (3,) body specific force at the COM [m/s^2]
+    inertia_tensor_kg_m2: NDArray[np.float64]  # (3, 3) body, about the COM [kg m^2]
+    principal_inertia_kg_m2: NDArray[np.float64]  # (3,) diagonal of the tensor [kg m^2]
+    joint_position: NDArray[np.float64]  # (25,) [rad] / tether [m]
+    joint_velocity: NDArray[np.float64]  # (25,) [rad/s] / [m/s]
+    radii_m: NDArray[np.float64]  # (3,) effective r_x, r_y, r_z [m]
+    mass_positions_world_m: NDArray[np.float64]  # (10, 3) [m]
+    hemi_acceleration_g: NDArray[np.float64]  # (2,) specific-force magnitude per hemi body [G]
+    contact_force_n: NDArray[np.float64]  # (2, 3) ground on hemi, world [N]
+    in_contact: NDArray[np.bool_]  # (2,)
+    rotational_energy_j: float  # 1/2 w' I w [J] (the paper's)
+    kinetic_energy_j: float  # total: COM + rotation + morphing motion [J]
+    angular_momentum_world: NDArray[np.float64]  # (3,) about the COM [kg m^2/s]
+    tether_tension_n: float  # [N] > 0 taut
+    tether_slack: bool  # tension <= 0
+    actuator_power_w: float  # rate of actuator work on the system [W]
+    # Extensions beyond the shared API:
+    actuator_work_j: float = 0.0  # actuator work since t = 0 [J]
+    contact_torque_n_m: NDArray[np.float64] = field(
+        default_factory=lambda: np.zeros((2, 3))
+    )  # (2, 3) ground on hemi about the hemi body, world [N m]
+    thrust_force_n: NDArray[np.float64] = field(
+        default_factory=lambda: np.zeros((2, 3))
+    )  # (2, 3) jump thrust applied through each hemi body, world [N]
+    in_thrust_range: NDArray[np.bool_] = field(
+        default_factory=lambda: np.zeros(2, dtype=bool)
+    )  # (2,) hemi within the leg stroke of the ground
+    kinetic_energy_about_com_j: float = 0.0  # rotation + morphing motion [J]
+
+    def is_finite(self) -> bool:
+        """Every number in the snapshot is finite."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray) and value.dtype != bool:
+                if not np.all(np.isfinite(value)):
+                    return False
+            elif isinstance(value, float) and not math.isfinite(value):
+                return False
+        return True
+
+
+def _readonly(a: ArrayLike) -> NDArray:
+    arr = np.array(a)
+    arr.flags.writeable = False
+    return arr
+
+
+class Simulator:
+    """Variable-inertia rigid-body simulator of SPLITTER with ground contact."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        config: SimConfig,
+        initial: InitialState,
+        *,
+        gyroscopic_sign: float = -1.0,
+    ) -> None:
+        """Build the simulator; ``gyroscopic_sign = +1`` is a deliberate bug for tests only."""
+        if gyroscopic_sign not in (-1.0, 1.0):
+            raise ValueError("gyroscopic_sign must be -1 (physics) or +1 (deliberate error)")
+        self.model = model
+        self.config = config
+        radii = np.asarray(initial.radii_m, dtype=float)
+        lo, hi = model.radii_min_m, model.radii_max_m
+        if np.any(radii < lo - 1e-12) or np.any(radii > hi + 1e-12):
+            raise ValueError(
+                f"InitialState.radii_m {radii.tolist()} outside the reachable range "
+                f"[{lo.tolist()}, {hi.tolist()}]"
+            )
+        self._kin = ShapeKinematics(model)
+        self._limits = actuators.actuator_limits(model)
+        self._masses = np.array(self._kin.masses)
+        self._q = joint_positions_from_radii(model, radii)
+        self._q = np.clip(self._q, self._limits.position_min, self._limits.position_max)
+        self._qd = np.zeros(actuators.N_JOINTS)
+        self._qdd = np.zeros(actuators.N_JOINTS)
+        self._cmd_q = self._q.copy()
+        self._cmd_qd = np.zeros(actuators.N_JOINTS)
+        self._cmd_t_ns = 0
+        self._shape = self._kin.evaluate(self._q.tolist())
+        w = np.asarray(initial.angular_velocity_rad_s, dtype=float)
+        momentum = self._shape.inertia_matrix() @ w
+        self._s = [
+            *np.asarray(initial.position_m, dtype=float).tolist(),
+            *np.asarray(initial.velocity_m_s, dtype=float).tolist(),
+            *np.asarray(initial.orientation_wxyz, dtype=float).tolist(),
+            *momentum.tolist(),
+            0.0,
+        ]
+        self._prm = DynamicsParameters(
+            total_mass=self._kin.total_mass,
+            damping=model.damping_coefficient,
+            gravity=config.gravity_m_s2,
+            contact_stiffness=config.contact_stiffness_n_m,
+            contact_damping=config.contact_damping_n_s_m,
+            friction_coefficient=config.friction_coefficient,
+            friction_damping=config.friction_damping_n_s_m,
+            gyroscopic_sign=gyroscopic_sign,
+        )
+        self._jump_force = (0.0, 0.0, 0.0)
+        self._jump_hemi: str = "auto"
+        self._t_ns = 0
+        self._dt_ns = config.dt_ns
+        self._dt = self._dt_ns * 1e-9
+        self.contact_step_count = 0  # steps integrated with contact sub-steps
+
+    # --- construction ------------------------------------------------------------
+    @classmethod
+    def from_scenario(cls, scenario: Scenario, model: RobotModel | None = None) -> Simulator:
+        """Simulator set up as ``scenario`` (a ``splitter_bringup`` Scenario) describes."""
+        from scipy.spatial.transform import Rotation
+
+        xyzw = Rotation.from_euler(
+            "xyz", np.asarray(scenario.initial_orientation_euler_deg, dtype=float), degrees=True
+        ).as_quat()
+        initial = InitialState(
+            position_m=scenario.initial_position_m,
+            velocity_m_s=scenario.initial_velocity_m_s,
+            orientation_wxyz=np.roll(xyzw, 1),
+            angular_velocity_rad_s=scenario.initial_angular_velocity_rad_s,
+            radii_m=scenario.initial_radii_m,
+        )
+        config = SimConfig(
+            dt_s=float(scenario.sim_dt_s),
+            gravity_m_s2=float(scenario.gravity_m_s2),
+            ground_contact=bool(scenario.ground_contact),
+        )
+        return cls(model or RobotModel(), config, initial)
+
+    # --- commands ----------------------------------------------------------------
+    @property
+    def time_ns(self) -> int:
+        """Simulated time [ns]."""
+        return self._t_ns
+
+    @property
+    def joint_limits(self) -> actuators.ActuatorLimits:
+        """Position, speed and acceleration limits of the 25 actuators."""
+        return self._limits
+
+    def command_joints(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
+        """Set the joint targets (25, ``names.JOINT_NAMES`` order); ValueError when invalid.
+
+        An invalid command leaves the previous one in force.
+        """
+        from splitter_msgs_py.names import JOINT_NAMES
+
+        q, qd = actuators.validate_joint_command(self._limits, position, velocity, JOINT_NAMES)
+        self._cmd_q, self._cmd_qd, self._cmd_t_ns = q, qd, self._t_ns
+
+    def command_jump_force(self, force_world_n: ArrayLike, hemi: str = "auto") -> None:
+        """Jump thrust [N], world frame, pushed through ``hemi`` ("a", "b" or "auto").
+
+        The force acts on the pushing hemi's body (so it also exerts a moment about
+        the COM) while that hemi is within ``SimConfig.thrust_stroke_m`` of the
+        ground; "auto" splits it equally over the hemis within reach. Zero = no thrust.
+        """
+        f = np.array(force_world_n, dtype=float).reshape(-1)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"jump force must be 3 finite numbers, got {force_world_n!r}")
+        if hemi not in ("a", "b", "auto"):
+            raise ValueError(f"jump hemi must be 'a', 'b' or 'auto', got {hemi!r}")
+        self._jump_force = (float(f[0]), float(f[1]), float(f[2]))
+        self._jump_hemi = hemi
+
+    # --- integration -------------------------------------------------------------
+    def _lowest_mass_heights(self, s: list[float], shape: Shape) -> tuple[float, float]:
+        _, _, _, _, _, _, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+        pz = s[2]
+        low = [math.inf, math.inf]
+        for i in range(10):
+            z = pz + r20 * shape.rx[i] + r21 * shape.ry[i] + r22 * shape.rz[i]
+            hemi = HEMI_OF_MASS[i]
+            low[hemi] = min(low[hemi], z)
+        return low[0], low[1]
+
+    def _thrust_terms(
+        self, low: tuple[float, float]
+    ) -> tuple[tuple[int, float, float, float], ...]:
+        fx, fy, fz = self._jump_force
+        if fx == 0.0 and fy == 0.0 and fz == 0.0:
+            return ()
+        stroke = self.config.thrust_stroke_m
+        reach = [low[h] <= stroke for h in range(2)]
+        if self._jump_hemi != "auto":
+            hemi = HEMI_LABELS.index(self._jump_hemi)
+            pushing = [hemi] if reach[hemi] else []
+        else:
+            pushing = [h for h in range(2) if reach[h]]
+        if not pushing:
+            return ()
+        share = 1.0 / len(pushing)
+        return tuple((HEMI_BODY_INDEX[h], fx * share, fy * share, fz * share) for h in pushing)
+
+    def _may_touch(self, low: tuple[float, float], s: list[float], shape: Shape) -> bool:
+        if not self.config.ground_contact:
+            return False
+        vx, vy, vz = s[3], s[4], s[5]
+        wx, wy, wz = self._angular_velocity(s, shape)
+        speed = (
+            math.sqrt(vx * vx + vy * vy + vz * vz)
+            + math.sqrt(wx * wx + wy * wy + wz * wz) * shape.radius_max
+            + shape.speed_max
+        )
+        dt = self._dt
+        # Generous bound on how far a mass can fall within the step (speeds may double).
+        reach = 2.0 * speed * dt + (self.config.gravity_m_s2 + 100.0) * dt * dt
+        return min(low) - reach <= 0.0
+
+    @staticmethod
+    def _angular_velocity(s: list[float], shape: Shape) -> tuple[float, float, float]:
+        from splitter_sim.core.rigid_body import angular_velocity
+
+        return angular_velocity(shape, s[10], s[11], s[12])
+
+    def step(self) -> None:
+        """Advance by one step ``dt``: actuators, then RK4 (sub-stepped near the ground)."""
+        lim = self._limits
+        age_s = (self._t_ns - self._cmd_t_ns) * 1e-9
+        target, target_v = actuators.command_target(self._cmd_q, self._cmd_qd, age_s, lim)
+        q, qd = self._q, self._qd
+        qdd = actuators.servo_acceleration(q, qd, target, target_v, lim, self._dt)
+        moving = bool(qd.any() or qdd.any())
+        s = self._s
+        shape0 = self._shape
+        if moving:  # right-limit accelerations of the new step
+            shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
+        low = self._lowest_mass_heights(s, shape0)
+        prm = self._prm
+        prm.thrust = self._thrust_terms(low)
+        prm.contact = self._may_touch(low, s, shape0)
+        n = self.config.contact_substeps if prm.contact else 1
+        if prm.contact:
+            self.contact_step_count += 1
+        h = self._dt / n
+        qdd_list = qdd.tolist()
+        for _ in range(n):
+            if moving:
+                q_mid, qd_mid = actuators.advance(q, qd, qdd, 0.5 * h)
+                q, qd = actuators.advance(q, qd, qdd, h)
+                shape_mid = self._kin.evaluate(q_mid.tolist(), qd_mid.tolist(), qdd_list)
+                shape_end = self._kin.evaluate(q.tolist(), qd.tolist(), qdd_list)
+            else:
+                shape_mid = shape_end = shape0
+            s = rk4_step(s, h, prm, shape0, shape_mid, shape_end)
+            shape0 = shape_end
+        if moving:
+            q = np.clip(q, lim.position_min, lim.position_max)
+            if actuators.snap_arrived(q, qd, target, target_v):
+                shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd_list)
+        self._q, self._qd, self._qdd = q, qd, qdd
+        self._s = s
+        self._shape = shape0
+        self._t_ns += self._dt_ns
+
+    # --- outputs -----------------------------------------------------------------
+    def state(self) -> SimState:
+        """Snapshot of the current state and the derived quantities."""
+        s = self._s
+        shape = self._shape
+        prm = self._prm
+        low = self._lowest_mass_heights(s, shape)
+        thrust = self._thrust_terms(low)
+        saved = prm.contact, prm.thrust
+        prm.contact, prm.thrust = self.config.ground_contact, thrust
+        out: dict = {}
+        try:
+            state_derivative(s, shape, prm, out)
+        finally:
+            prm.contact, prm.thrust = saved
+        R = np.array(out["rotation"]).reshape(3, 3)
+        w = np.array(out["angular_velocity"])
+        w_dot = np.array(out["angular_acceleration"])
+        a_com = np.array(out["acceleration_world"])
+        g_vec = np.array([0.0, 0.0, -self.config.gravity_m_s2])
+        r = shape.positions()
+        dr = shape.velocities()
+        ddr = shape.accelerations()
+        m = self._masses
+        position = np.array(s[0:3])
+        velocity = np.array(s[3:6])
+        momentum_body = np.array(s[10:13])
+        inertia = shape.inertia_matrix()
+        world_positions = position + r @ R.T
+        # Ground and thrust forces on each mass, world frame.
+        f_ext = np.zeros((10, 3))
+        contact = np.zeros((10, 3))
+        for i, fx, fy, fz, _ in out["contacts"] or ():
+            contact[i] = (fx, fy, fz)
+        thrust_mass = np.zeros((10, 3))
+        for i, fx, fy, fz in thrust:
+            thrust_mass[i] = (fx, fy, fz)
+        f_ext = contact + thrust_mass
+        # Inertial acceleration of every mass (world).
+        rel = np.cross(w_dot, r) + np.cross(w, np.cross(w, r)) + 2.0 * np.cross(w, dr) + ddr
+        acc = a_com + rel @ R.T
+        specific = acc - g_vec
+        hemi_g = np.linalg.norm(specific[list(HEMI_BODY_INDEX)], axis=1) / STANDARD_GRAVITY
+        # Tether tension from the radial dynamics of hemi a (its five masses):
+        # the other hemi pulls on it with F = sum (m a - f_ext - m g); T = -F . x_tether.
+        x_tether = R[:, 0]
+        pull = (m[:5, None] * (acc[:5] - g_vec) - f_ext[:5]).sum(axis=0)
+        tension = float(-pull @ x_tether)
+        contact_hemi = np.stack([contact[:5].sum(axis=0), contact[5:].sum(axis=0)])
+        torque_hemi = np.zeros((2, 3))
+        for hemi, body in enumerate(HEMI_BODY_INDEX):
+            sl = slice(5 * hemi, 5 * hemi + 5)
+            torque_hemi[hemi] = np.cross(
+                world_positions[sl] - world_positions[body], contact[sl]
+            ).sum(axis=0)
+        in_contact = np.array([contact[:5, 2].any(), contact[5:, 2].any()])
+        thrust_hemi = np.stack([thrust_mass[:5].sum(axis=0), thrust_mass[5:].sum(axis=0)])
+        e_rot = 0.5 * float(w @ inertia @ w)
+        t_about = e_rot + float(w @ np.array(shape.h)) + shape.kinetic_energy_relative
+        kinetic = 0.5 * self._kin.total_mass * float(velocity @ velocity) + t_about
+        specific_com = R.T @ (a_com - g_vec)
+        return SimState(
+            t_ns=self._t_ns,
+            position_m=_readonly(position),
+            velocity_m_s=_readonly(velocity),
+            orientation_wxyz=_readonly(s[6:10]),
+            angular_velocity_rad_s=_readonly(w),
+            linear_acceleration_m_s2=_readonly(specific_com),
+            inertia_tensor_kg_m2=_readonly(inertia),
+            principal_inertia_kg_m2=_readonly(np.diag(inertia).copy()),
+            joint_position=_readonly(self._q),
+            joint_velocity=_readonly(self._qd),
+            radii_m=_readonly(radii_from_joint_positions(self.model, self._q)),
+            mass_positions_world_m=_readonly(world_positions),
+            hemi_acceleration_g=_readonly(hemi_g),
+            contact_force_n=_readonly(contact_hemi),
+            in_contact=_readonly(in_contact),
+            rotational_energy_j=e_rot,
+            kinetic_energy_j=kinetic,
+            angular_momentum_world=_readonly(R @ momentum_body),
+            tether_tension_n=tension,
+            tether_slack=tension <= 0.0,
+            actuator_power_w=float(out["actuator_power"]),
+            actuator_work_j=float(s[13]),
+            contact_torque_n_m=_readonly(torque_hemi),
+            thrust_force_n=_readonly(thrust_hemi),
+            in_thrust_range=_readonly(
+                np.array([low[h] <= self.config.thrust_stroke_m for h in range(2)])
+            ),
+            kinetic_energy_about_com_j=t_about,
+        )
