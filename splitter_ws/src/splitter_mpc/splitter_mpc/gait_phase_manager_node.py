@@ -1,0 +1,492 @@
+"""``gait_phase_manager``: sequences Launch, In-Flight, Jump, Landing and Landed.
+
+A thin ROS layer over :class:`splitter_mpc.core.gait.GaitPhaseMachine`.
+
+Lockstep (docs/ARCHITECTURE.md, item 5): the node answers control tick ``t``
+(``t`` on the ``control_period_s`` grid) once it holds ``/splitter/odom``, both
+contact wrenches and ``/splitter/joint_states`` stamped ``t``; it publishes
+``/splitter/jump_command`` stamped ``t`` (a zero wrench when not thrusting) on
+every tick it answers. Waiting for all four inputs of the same tick makes the
+answer independent of the order in which DDS delivers them, so runs repeat.
+
+An input that fails validation (NaN, non-unit quaternion, wrong frame, ...) is
+rejected with a throttled warning; its tick is still answered, from the last
+good message of that topic, so lockstep never stalls on bad data.
+
+Subscribes: ``/splitter/odom``, ``/splitter/hemi_{a,b}/contact_wrench`` (stance:
+world-z force above ``stance_force_threshold_n``), ``/splitter/joint_states``
+(``r_x`` = tether joint / 2).
+Publishes: ``/splitter/jump_command`` (every tick), ``/splitter/gait_phase``,
+``/splitter/attitude_reference`` and ``/splitter/attitude_reference_pose``
+(latched, on change), ``/diagnostics`` (every ``diagnostics_period_s`` of
+simulated time).
+"""
+
+from __future__ import annotations
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import (
+    ParameterException,
+    ParameterUninitializedException,
+)
+from rclpy.executors import ExternalShutdownException
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from splitter_mpc.core.gait import (
+    ATTITUDE_REFERENCE_MODES,
+    GaitConfig,
+    GaitOutput,
+    GaitPhaseMachine,
+    jump_plan_from_arrays,
+    seconds_to_ns,
+)
+from splitter_msgs_py import names
+from splitter_msgs_py.conversions import (
+    DiagnosticStatusSample,
+    MessageValidationError,
+    diagnostics_to_msg,
+    joint_state_from_msg,
+    odom_from_msg,
+    pose_to_msg,
+    stamp_from_msg,
+    twist_to_msg,
+    wrench_from_msg,
+    wrench_to_msg,
+)
+from splitter_msgs_py.parameters import (
+    InvalidParameterError,
+    ParameterSpec,
+    declare_parameters,
+    rejection_counts,
+    warn_throttled,
+)
+from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+
+NODE_NAME = "gait_phase_manager"
+TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
+TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
+MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
+
+# The jump plan: float arrays that a params file may give as [] (read as "not set").
+PLAN_PARAMETERS = (
+    ParameterSpec("jump_times_s", [], "planned jump times: earliest thrust start [s]"),
+    ParameterSpec(
+        "jump_forces_n", [], "planned thrust forces, world frame, 3 values per jump (x, y, z) [N]"
+    ),
+    ParameterSpec("jump_durations_s", [], "planned thrust durations, one per jump [s]"),
+)
+PARAMETERS = (
+    ParameterSpec(
+        "stance_force_threshold_n",
+        2.0,
+        "contact normal force above which a hemi is in stance [N]",
+        min_value=1e-3,
+        max_value=1e4,
+    ),
+    ParameterSpec(
+        "liftoff_debounce_s",
+        0.02,
+        "no stance for longer than this means lift-off [s]",
+        min_value=0.0,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "landed_speed_m_s",
+        0.05,
+        "centre-of-mass speed below which the robot is at rest [m/s]",
+        min_value=1e-4,
+        max_value=10.0,
+    ),
+    ParameterSpec(
+        "landed_angular_speed_rad_s",
+        0.05,
+        "angular speed below which the robot is at rest [rad/s]",
+        min_value=1e-4,
+        max_value=10.0,
+    ),
+    ParameterSpec(
+        "landed_dwell_s",
+        0.5,
+        "time at rest in stance before LANDED [s]",
+        min_value=0.0,
+        max_value=60.0,
+    ),
+    ParameterSpec(
+        "landed_exit_factor",
+        2.0,
+        "LANDED is left when speed or angular speed exceed this times the rest thresholds",
+        min_value=1.0,
+        max_value=100.0,
+    ),
+    ParameterSpec(
+        "w_ref_rad_s",
+        [0.0, 1.0, 0.0],
+        "flight angular velocity reference, base frame [rad/s]",
+        length=3,
+    ),
+    ParameterSpec(
+        "landing_w_ref_rad_s",
+        [0.0, 0.0, 0.0],
+        "angular velocity reference during landing, base frame [rad/s]",
+        length=3,
+    ),
+    ParameterSpec(
+        "attitude_reference",
+        "integrate_w_ref",
+        "attitude reference: hold the first measured attitude, or propagate it with w_ref",
+        choices=ATTITUDE_REFERENCE_MODES,
+    ),
+    ParameterSpec(
+        "control_period_s",
+        0.01,
+        "control tick period: ticks answered are the multiples of it [s]",
+        min_value=0.001,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "diagnostics_period_s",
+        0.1,
+        "diagnostics period in simulated time, a multiple of control_period_s [s]",
+        min_value=0.001,
+        max_value=10.0,
+    ),
+)
+
+
+def declare_plan_arrays(node: Node) -> dict[str, list[float]]:
+    """Declare and validate the plan's float arrays, an empty or absent one meaning no jump.
+
+    ``declare_parameters`` reads a ``[]`` given in a params file as an unset
+    value and rejects it; here it is the empty plan. Same descriptors, same checks.
+    """
+    values: dict[str, list[float]] = {}
+    for spec in PLAN_PARAMETERS:
+        descriptor = spec.descriptor()
+        descriptor.dynamic_typing = True  # a YAML list of integers is accepted
+        try:
+            node.declare_parameter(spec.name, spec.default, descriptor)
+        except ParameterException as exc:
+            raise InvalidParameterError(f"parameter '{spec.name}': {exc}") from exc
+        raw = node.get_parameter(spec.name).value
+        values[spec.name] = spec.validate([] if raw is None else list(raw))
+    return values
+
+
+def declare_string_array(node: Node, name: str, description: str) -> list[str]:
+    """Declare a string-array parameter (empty when not given) and read it.
+
+    ``ParameterSpec`` covers numbers and strings; a string array is declared here
+    with the same error contract (``InvalidParameterError`` naming it).
+    """
+    descriptor = ParameterDescriptor(name=name, description=description)
+    try:
+        node.declare_parameter(name, Parameter.Type.STRING_ARRAY, descriptor)
+        value = node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return []
+    except ParameterException as exc:
+        raise InvalidParameterError(f"parameter '{name}': {exc}") from exc
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise InvalidParameterError(f"parameter '{name}' must be a list of strings, got {value!r}")
+    return list(value)
+
+
+def _named_parameter_error(exc: ValueError) -> InvalidParameterError:
+    """``InvalidParameterError`` from a core ``ValueError`` whose text starts with the name."""
+    name, _, reason = str(exc).partition(": ")
+    return InvalidParameterError(f"parameter '{name}': {reason}")
+
+
+class GaitPhaseManagerNode(Node):
+    """Answers every control tick with a jump command; publishes phase and references."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            config, periods = self._read_parameters()
+        except InvalidParameterError:
+            self.destroy_node()
+            raise
+        self._control_period_ns, self._diagnostics_period_ns = periods
+        self._machine = GaitPhaseMachine(config)
+        self._pending: dict[int, dict[str, object | None]] = {}
+        self._last_good: dict[str, object] = {}
+        self._last_tick_ns: int | None = None
+        self._ticks_answered = 0
+        self._stale_ticks = 0
+        self._last_output: GaitOutput | None = None
+
+        self._jump_pub = self.create_publisher(
+            WrenchStamped, names.JUMP_COMMAND, qos_for(names.JUMP_COMMAND)
+        )
+        self._phase_pub = self.create_publisher(String, names.GAIT_PHASE, LATCHED_QOS)
+        self._w_ref_pub = self.create_publisher(TwistStamped, names.ATTITUDE_REFERENCE, LATCHED_QOS)
+        self._q_ref_pub = self.create_publisher(
+            PoseStamped, names.ATTITUDE_REFERENCE_POSE, LATCHED_QOS
+        )
+        self._diagnostics_pub = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
+        )
+        self.create_subscription(Odometry, names.ODOM, self._on_odom, qos_for(names.ODOM))
+        for topic in names.CONTACT_WRENCHES:
+            self.create_subscription(
+                WrenchStamped,
+                topic,
+                lambda msg, topic=topic: self._on_contact(topic, msg),
+                qos_for(topic),
+            )
+        self.create_subscription(
+            JointState, names.JOINT_STATES, self._on_joint_states, qos_for(names.JOINT_STATES)
+        )
+        self.get_logger().info(
+            f"{len(config.jumps)} jump(s) planned at "
+            f"{[j.time_ns / 1e9 for j in config.jumps]} s; attitude reference "
+            f"'{config.attitude_reference}', w_ref {list(config.w_ref_rad_s)} rad/s"
+        )
+
+    # -- parameters ----------------------------------------------------------------------
+    def _read_parameters(self) -> tuple[GaitConfig, tuple[int, int]]:
+        values = declare_parameters(self, PARAMETERS)
+        values.update(declare_plan_arrays(self))
+        hemis = declare_string_array(
+            self, "jump_hemis", "pushing hemi per planned jump: 'a', 'b' or 'auto'"
+        )
+        try:
+            jumps = jump_plan_from_arrays(
+                values["jump_times_s"], values["jump_forces_n"], values["jump_durations_s"], hemis
+            )
+        except ValueError as exc:
+            raise _named_parameter_error(exc) from exc
+        control_ns = seconds_to_ns(values["control_period_s"])
+        diagnostics_ns = seconds_to_ns(values["diagnostics_period_s"])
+        if diagnostics_ns % control_ns != 0:
+            raise InvalidParameterError(
+                f"parameter 'diagnostics_period_s' ({values['diagnostics_period_s']} s) must be "
+                f"a multiple of control_period_s ({values['control_period_s']} s)"
+            )
+        w_ref = values["w_ref_rad_s"]
+        landing = values["landing_w_ref_rad_s"]
+        try:
+            config = GaitConfig(
+                jumps=jumps,
+                stance_force_threshold_n=values["stance_force_threshold_n"],
+                liftoff_debounce_ns=seconds_to_ns(values["liftoff_debounce_s"]),
+                landed_speed_m_s=values["landed_speed_m_s"],
+                landed_angular_speed_rad_s=values["landed_angular_speed_rad_s"],
+                landed_dwell_ns=seconds_to_ns(values["landed_dwell_s"]),
+                landed_exit_factor=values["landed_exit_factor"],
+                w_ref_rad_s=(w_ref[0], w_ref[1], w_ref[2]),
+                landing_w_ref_rad_s=(landing[0], landing[1], landing[2]),
+                attitude_reference=values["attitude_reference"],
+            )
+        except ValueError as exc:
+            raise _named_parameter_error(exc) from exc
+        return config, (control_ns, diagnostics_ns)
+
+    # -- inputs --------------------------------------------------------------------------
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            sample = odom_from_msg(msg)
+            if msg.header.frame_id != names.WORLD_FRAME:
+                raise MessageValidationError(
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{msg.header.frame_id}'"
+                )
+        except MessageValidationError as exc:
+            self._reject(names.ODOM, msg.header.stamp, exc)
+            return
+        self._accept(names.ODOM, sample.t_ns, sample)
+
+    def _on_contact(self, topic: str, msg: WrenchStamped) -> None:
+        try:
+            sample = wrench_from_msg(msg)
+            if sample.frame_id != names.WORLD_FRAME:
+                raise MessageValidationError(
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{sample.frame_id}'"
+                )
+        except MessageValidationError as exc:
+            self._reject(topic, msg.header.stamp, exc)
+            return
+        self._accept(topic, sample.t_ns, sample)
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        try:
+            sample = joint_state_from_msg(msg)
+            if sample.position[TETHER_INDEX] <= 0.0:
+                raise MessageValidationError(
+                    f"position: tether length {sample.position[TETHER_INDEX]} m is not > 0"
+                )
+        except MessageValidationError as exc:
+            self._reject(names.JOINT_STATES, msg.header.stamp, exc)
+            return
+        self._accept(names.JOINT_STATES, sample.t_ns, sample)
+
+    def _accept(self, topic: str, t_ns: int, sample: object) -> None:
+        self._last_good[topic] = sample
+        self._collect(topic, t_ns, sample)
+
+    def _reject(self, topic: str, stamp, exc: MessageValidationError) -> None:
+        t_ns = stamp_from_msg(stamp)
+        warn_throttled(
+            self, topic, f"rejected {topic} stamped {t_ns * 1e-9:.3f} s: {exc}; using last good"
+        )
+        self._collect(topic, t_ns, None)
+
+    def _collect(self, topic: str, t_ns: int, sample: object | None) -> None:
+        """File an input under its tick; answer the tick once all its inputs are in."""
+        if t_ns % self._control_period_ns != 0:
+            return
+        if self._last_tick_ns is not None and t_ns <= self._last_tick_ns:
+            return  # late or repeated: that tick is answered
+        inputs = self._pending.setdefault(t_ns, {})
+        inputs[topic] = sample
+        if len(self._pending) > MAX_PENDING_TICKS:
+            oldest = min(self._pending)
+            self.get_logger().warning(
+                f"tick {oldest * 1e-9:.3f} s dropped: inputs never completed "
+                f"(had {sorted(self._pending[oldest])})"
+            )
+            del self._pending[oldest]
+        if all(name in inputs for name in TICK_INPUTS):
+            for stale in [t for t in self._pending if t <= t_ns]:
+                if stale != t_ns:
+                    inputs_stale = sorted(self._pending[stale])
+                    self.get_logger().warning(
+                        f"tick {stale * 1e-9:.3f} s skipped: tick {t_ns * 1e-9:.3f} s completed "
+                        f"first (had {inputs_stale})"
+                    )
+                del self._pending[stale]
+            self._answer_tick(t_ns, inputs)
+
+    # -- the tick ------------------------------------------------------------------------
+    def _answer_tick(self, t_ns: int, inputs: dict[str, object | None]) -> None:
+        self._last_tick_ns = t_ns
+        self._ticks_answered += 1
+        if any(sample is None for sample in inputs.values()):
+            self._stale_ticks += 1
+        # A rejected input (None) is replaced by the last good message of its topic.
+        odom, contact_a, contact_b, joints = (
+            inputs[topic] if inputs[topic] is not None else self._last_good.get(topic)
+            for topic in TICK_INPUTS
+        )
+        output = None
+        if odom is None or contact_a is None or contact_b is None or joints is None:
+            warn_throttled(
+                self, "no_good_input", f"tick {t_ns * 1e-9:.3f} s: no good input yet; zero thrust"
+            )
+        else:
+            try:
+                output = self._machine.update(
+                    t_ns,
+                    odom.position_m,
+                    odom.velocity_world_m_s,
+                    odom.orientation_wxyz,
+                    odom.angular_velocity_rad_s,
+                    0.5 * float(joints.position[TETHER_INDEX]),
+                    (float(contact_a.force_n[2]), float(contact_b.force_n[2])),
+                )
+            except ValueError as exc:
+                self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: gait update failed: {exc}")
+        self._publish(t_ns, output)
+
+    def _publish(self, t_ns: int, output: GaitOutput | None) -> None:
+        try:
+            if output is None:
+                jump = wrench_to_msg(t_ns, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), names.WORLD_FRAME)
+            else:
+                jump = wrench_to_msg(
+                    t_ns, output.jump_force_n, output.jump_torque_nm, names.WORLD_FRAME
+                )
+        except MessageValidationError as exc:
+            self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: jump command refused ({exc}); zero")
+            jump = wrench_to_msg(t_ns, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), names.WORLD_FRAME)
+        self._jump_pub.publish(jump)
+        if output is not None:
+            self._last_output = output
+            if output.phase_changed:
+                self.get_logger().info(
+                    f"gait phase {output.phase.value} at t = {t_ns * 1e-9:.3f} s"
+                )
+                self._phase_pub.publish(String(data=output.phase.value))
+            if output.reference is not None:
+                self._publish_reference(output)
+        if t_ns % self._diagnostics_period_ns == 0:
+            self._publish_diagnostics(t_ns)
+
+    def _publish_reference(self, output: GaitOutput) -> None:
+        reference = output.reference
+        try:
+            twist = twist_to_msg(reference.stamp_ns, reference.w_ref_rad_s, names.BASE_FRAME)
+            pose = pose_to_msg(reference.stamp_ns, reference.q_ref_wxyz, frame_id=names.WORLD_FRAME)
+        except MessageValidationError as exc:
+            self.get_logger().error(f"attitude reference not published: {exc}")
+            return
+        self._w_ref_pub.publish(twist)
+        self._q_ref_pub.publish(pose)
+
+    def _publish_diagnostics(self, t_ns: int) -> None:
+        output = self._last_output
+        rejected = sum(rejection_counts(self).values())
+        values: dict[str, float | int | str | bool] = {
+            "ticks_answered": self._ticks_answered,
+            "ticks_with_rejected_input": self._stale_ticks,
+            "rejected_messages": rejected,
+        }
+        if output is None:
+            level, message = 1, "no good input yet"
+        else:
+            values.update(
+                {
+                    "phase": output.phase.value,
+                    "time_in_phase_s": output.time_in_phase_ns * 1e-9,
+                    "jumps_done": output.jumps_done,
+                    "jumps_planned": output.jumps_planned,
+                    "stance_a": output.stance[0],
+                    "stance_b": output.stance[1],
+                    "thrusting": output.thrusting,
+                    "pushing_hemi": output.pushing_hemi or "",
+                    "jump_waiting_for_stance": output.jump_waiting,
+                    "hemi_a_height_m": output.hemi_height_m[0],
+                    "hemi_b_height_m": output.hemi_height_m[1],
+                    "jump_force_z_n": float(output.jump_force_n[2]),
+                }
+            )
+            level = 1 if output.jump_waiting else 0
+            message = output.phase.value
+            if output.jump_waiting:
+                message += " (jump due, waiting for its hemi to be in stance)"
+        status = DiagnosticStatusSample(f"{NODE_NAME}: gait phase", level, message, values)
+        try:
+            self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [status]))
+        except MessageValidationError as exc:
+            self.get_logger().error(f"diagnostics not published: {exc}")
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GaitPhaseManagerNode()
+        rclpy.spin(node)
+    except InvalidParameterError as exc:
+        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
