@@ -1,0 +1,356 @@
+"""The simulator against physics: conservation laws and closed-form solutions.
+
+Each test runs the real :class:`Simulator` at the paper's step (5 ms, RK4) and
+compares with what mechanics says must happen. Tolerances are those of the
+issue; where a check could pass for the wrong reason, a second run shows it
+failing when the physics is deliberately broken.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from scipy.special import ellipk
+
+from splitter_sim.core.kinematics import joint_positions_from_radii
+from splitter_sim.core.model import GRAVITY_PRESETS, RobotModel
+from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
+
+MODEL = RobotModel()
+PAPER_W0 = (-0.3, -0.9, 0.9)  # [rad/s] Table I
+DT = 0.005  # [s]
+
+
+def _relative(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(b))
+
+
+def _flight(w0=PAPER_W0, radii=(2.8, 0.2, 0.2), model: RobotModel = MODEL, **kwargs) -> Simulator:
+    return Simulator(
+        model,
+        SimConfig(ground_contact=False),
+        InitialState(position_m=(0.0, 0.0, 10.0), angular_velocity_rad_s=w0, radii_m=radii),
+        **kwargs,
+    )
+
+
+def test_torque_free_constant_geometry_conserves_momentum_and_energy_for_20_s() -> None:
+    # Asymmetric geometry (three distinct moments) so the body tumbles.
+    sim = _flight(w0=(0.4, -0.9, 0.7), radii=(2.2, 0.33, 0.14))
+    start = sim.state()
+    worst_h = worst_e = 0.0
+    for k in range(int(20.0 / DT)):
+        sim.step()
+        if k % 50 == 49:
+            s = sim.state()
+            worst_h = max(
+                worst_h, _relative(s.angular_momentum_world, start.angular_momentum_world)
+            )
+            worst_e = max(worst_e, abs(s.kinetic_energy_j / start.kinetic_energy_j - 1.0))
+    assert sim.time_ns == 20_000_000_000
+    assert worst_h < 1e-9
+    assert worst_e < 1e-9
+    # The body did tumble: the body-frame angular velocity changed a lot.
+    assert _relative(sim.state().angular_velocity_rad_s, start.angular_velocity_rad_s) > 0.1
+
+
+def _morph(sim: Simulator) -> tuple[list, list]:
+    """Reel the tether in and move the limbs (two commands), then hold; sample states."""
+    first = joint_positions_from_radii(MODEL, (2.3, 0.3, 0.13))
+    second = joint_positions_from_radii(MODEL, (2.6, 0.16, 0.26))
+    states = [sim.state()]
+    sim.command_joints(first)
+    for k in range(int(3.0 / DT)):
+        if k == int(1.4 / DT):
+            sim.command_joints(second)
+        sim.step()
+        states.append(sim.state())
+    return states, [first, second]
+
+
+def test_morphing_conserves_momentum_and_energy_changes_by_actuator_work() -> None:
+    states, (_, second) = _morph(_flight())
+    start, end = states[0], states[-1]
+    # The joints really moved, ended at rest on the last command, and changed the energy.
+    assert max(np.abs(s.joint_velocity).max() for s in states) > 1.0
+    np.testing.assert_array_equal(end.joint_position, second)
+    assert not end.joint_velocity.any()
+    delta_e = end.rotational_energy_j - start.rotational_energy_j
+    assert abs(delta_e) > 0.05 * start.rotational_energy_j
+    h_error = max(_relative(s.angular_momentum_world, start.angular_momentum_world) for s in states)
+    assert h_error < 1e-9
+    # At rest the kinetic energy about the COM is 1/2 w'Iw, the paper's rotational energy.
+    assert end.kinetic_energy_about_com_j == pytest.approx(end.rotational_energy_j, rel=1e-12)
+    assert abs(delta_e - end.actuator_work_j) < 1e-6 * abs(delta_e)
+    # Throughout (limbs moving): kinetic energy about the COM changes by the work done.
+    for s in states[1:]:
+        change = s.kinetic_energy_about_com_j - start.kinetic_energy_about_com_j
+        assert abs(change - s.actuator_work_j) < 1e-6 * abs(delta_e)
+
+
+def test_reel_power_is_tension_times_reel_in_speed() -> None:
+    """Only the tether moves: the actuator power is T * (-d(tether)/dt), two code paths."""
+    sim = _flight(w0=(0.1, 1.0, -0.2))
+    sim.command_joints(joint_positions_from_radii(MODEL, (2.0, 0.2, 0.2)))
+    checked = 0
+    for _ in range(300):
+        sim.step()
+        s = sim.state()
+        reel_speed = -s.joint_velocity[24]  # [m/s] > 0 reeling in
+        assert s.actuator_power_w == pytest.approx(s.tether_tension_n * reel_speed, abs=1e-9)
+        checked += reel_speed > 0.5
+    assert checked > 100
+
+
+def test_flipped_gyroscopic_sign_fails_the_momentum_check() -> None:
+    """The paper's sign error: the energy balance cannot see it, world H does."""
+    states, _ = _morph(_flight(gyroscopic_sign=1.0))
+    start, end = states[0], states[-1]
+    h_error = max(_relative(s.angular_momentum_world, start.angular_momentum_world) for s in states)
+    assert h_error > 1e-2  # the 1e-9 check of the test above fails by 7 orders
+    # Gyroscopic forces do no work (w . (w x L) = 0): the energy balance still closes.
+    delta_e = end.rotational_energy_j - start.rotational_energy_j
+    assert abs(delta_e - end.actuator_work_j) < 1e-6 * abs(delta_e)
+
+
+def _dzhanibekov_period(inertia: np.ndarray, w0: np.ndarray) -> float:
+    """Full period of the torque-free Euler equations (Landau & Lifshitz section 37)."""
+    i1, i2, i3 = inertia
+    energy2 = float(np.sum(inertia * w0**2))  # 2E
+    momentum2 = float(np.sum((inertia * w0) ** 2))  # H^2
+    if momentum2 < energy2 * i2:  # polhode around the smallest axis: swap 1 and 3
+        i1, i3 = i3, i1
+    rate = math.sqrt((i3 - i2) * (momentum2 - energy2 * i1) / (i1 * i2 * i3))
+    m = (i2 - i1) * (energy2 * i3 - momentum2) / ((i3 - i2) * (momentum2 - energy2 * i1))
+    return 4.0 * float(ellipk(m)) / rate
+
+
+def test_intermediate_axis_flips_with_the_closed_form_period() -> None:
+    radii = (1.0, 0.35, 0.12)  # Ixx < Iyy < Izz: y is the intermediate axis
+    w0 = np.array([0.05, 3.0, 0.05])
+    sim = _flight(w0=w0, radii=radii)
+    inertia = sim.state().principal_inertia_kg_m2
+    assert inertia[0] < inertia[1] < inertia[2]
+    expected = _dzhanibekov_period(inertia, w0)
+    crossings = []
+    t_prev, wy_prev = 0.0, w0[1]
+    while len(crossings) < 3:
+        sim.step()
+        s = sim.state()
+        t, wy = s.t_ns * 1e-9, s.angular_velocity_rad_s[1]
+        if wy_prev > 0.0 >= wy:  # downward zero crossing of w_y: a flip
+            crossings.append(t_prev + (t - t_prev) * wy_prev / (wy_prev - wy))
+        t_prev, wy_prev = t, wy
+        assert t < 5.0 * expected, "no flips"
+    periods = np.diff(crossings)
+    assert periods == pytest.approx([expected, expected], rel=0.01)
+
+
+def test_axisymmetric_body_precesses_as_the_closed_form() -> None:
+    sim = _flight()  # paper Table I: r_y = r_z, so Iyy = Izz (symmetric about x)
+    start = sim.state()
+    i_a, i_t, _ = start.principal_inertia_kg_m2
+    w0 = np.array(PAPER_W0)
+    h_world = start.angular_momentum_world
+    h_norm = float(np.linalg.norm(h_world))
+    axis0 = Rotation.from_quat(np.roll(start.orientation_wxyz, -1)).apply([1.0, 0.0, 0.0])
+    body_rate = (i_t - i_a) * w0[0] / i_t  # [rad/s] of w_perp in the body
+    for _ in range(int(10.0 / DT)):
+        sim.step()
+    s = sim.state()
+    t = s.t_ns * 1e-9
+    c, sn = math.cos(body_rate * t), math.sin(body_rate * t)
+    expected_w = [w0[0], w0[1] * c + w0[2] * sn, w0[2] * c - w0[1] * sn]
+    np.testing.assert_allclose(s.angular_velocity_rad_s, expected_w, atol=1e-9)
+    # In the world the symmetry axis cones about H at |H| / I_t.
+    cone = Rotation.from_rotvec(h_world / h_norm * h_norm / i_t * t)
+    axis = Rotation.from_quat(np.roll(s.orientation_wxyz, -1)).apply([1.0, 0.0, 0.0])
+    np.testing.assert_allclose(axis, cone.apply(axis0), atol=1e-8)
+
+
+def test_free_fall_follows_the_damped_parabola() -> None:
+    g = GRAVITY_PRESETS["moon"]
+    sim = Simulator(
+        MODEL,
+        SimConfig(gravity_m_s2=g, ground_contact=True),
+        InitialState(position_m=(1.0, -2.0, 30.0), velocity_m_s=(2.0, 0.5, 3.0)),
+    )
+    beta = MODEL.damping_coefficient / MODEL.total_mass_kg  # [1/s]
+    v0 = np.array([2.0, 0.5, 3.0])
+    v_inf = np.array([0.0, 0.0, -g / beta])  # [m/s] terminal velocity of M dv/dt = -B v - M g
+    worst = 0.0
+    for _ in range(int(3.0 / DT)):
+        sim.step()
+        s = sim.state()
+        t = s.t_ns * 1e-9
+        # x0 + v0 (1 - e^-bt) / b + v_inf (t - (1 - e^-bt) / b), written without cancellation
+        decay = -math.expm1(-beta * t) / beta
+        lag = (beta * t + math.expm1(-beta * t)) / beta
+        expected = np.array([1.0, -2.0, 30.0]) + v0 * decay + v_inf * lag
+        worst = max(worst, float(np.abs(s.position_m - expected).max()))
+        assert not s.in_contact.any()
+        # Free fall: an IMU measures no specific force except the tiny drag.
+        assert np.linalg.norm(s.linear_acceleration_m_s2) < 1e-3
+    assert worst < 1e-9
+    # Without damping it is the textbook parabola.
+    t = 3.0
+    assert s.position_m[2] == pytest.approx(30.0 + 3.0 * t - 0.5 * g * t * t, abs=1e-3)
+
+
+@pytest.mark.parametrize("gravity", ["moon", "earth"])
+def test_dropped_robot_comes_to_rest_with_bounded_penetration_inside_the_cone(
+    gravity: str,
+) -> None:
+    g = GRAVITY_PRESETS[gravity]
+    config = SimConfig(gravity_m_s2=g)
+    drop_height = 0.5  # [m] of the lowest mass above the ground
+    tilt = Rotation.from_euler("xyz", [25.0, 4.0, 10.0], degrees=True)
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(
+            position_m=(0.0, 0.0, 3.0),
+            velocity_m_s=(0.4, -0.2, 0.0),
+            orientation_wxyz=np.roll(tilt.as_quat(), 1),
+            angular_velocity_rad_s=(0.3, 0.05, -0.1),
+        ),
+    )
+    lowest = sim.state().mass_positions_world_m[:, 2].min()
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(
+            position_m=(0.0, 0.0, 3.0 - lowest + drop_height),
+            velocity_m_s=(0.4, -0.2, 0.0),
+            orientation_wxyz=np.roll(tilt.as_quat(), 1),
+            angular_velocity_rad_s=(0.3, 0.05, -0.1),
+        ),
+    )
+    m_total = MODEL.total_mass_kg
+    k = config.contact_stiffness_n_m
+    e0 = sim.state().kinetic_energy_j + m_total * g * drop_height
+    # Energy bound: one spring could at most store everything the drop releases.
+    weight = m_total * g
+    penetration_bound = (weight + math.sqrt(weight**2 + 2.0 * k * e0)) / k
+    worst_penetration = 0.0
+    touched = False
+    for _ in range(int(8.0 / DT)):
+        sim.step()
+        s = sim.state()
+        worst_penetration = max(worst_penetration, -float(s.mass_positions_world_m[:, 2].min()))
+        touched |= bool(s.in_contact.any())
+        f = s.contact_force_n
+        tangential = np.hypot(f[:, 0], f[:, 1])
+        assert np.all(f[:, 2] >= 0.0)
+        assert np.all(tangential <= config.friction_coefficient * f[:, 2] + 1e-9)
+    assert touched
+    assert worst_penetration < penetration_bound
+    assert np.linalg.norm(s.velocity_m_s) < 1e-6
+    assert np.linalg.norm(s.angular_velocity_rad_s) < 1e-6
+    # At rest the ground carries the weight, shared by the feet: penetration M g / (n k).
+    assert s.contact_force_n[:, 2].sum() == pytest.approx(weight, rel=1e-6)
+    depths = -s.mass_positions_world_m[:, 2]
+    assert depths[depths > 0].sum() == pytest.approx(weight / k, rel=1e-6)
+    assert int(np.sum(depths > 0.0)) >= 3  # on a tripod or more, not balanced on a line
+
+
+def _standing(config: SimConfig) -> Simulator:
+    """Settled on four feet: rolled 45 deg about x, the y_neg and z_neg limbs down."""
+    roll = np.roll(Rotation.from_euler("x", 45.0, degrees=True).as_quat(), 1)
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=(0.0, 0.0, 0.2 * math.sqrt(0.5)), orientation_wxyz=roll),
+    )
+    for _ in range(400):
+        sim.step()
+    s = sim.state()
+    assert np.linalg.norm(s.velocity_m_s) < 1e-6 and s.in_contact.all()
+    assert int(np.sum(s.mass_positions_world_m[:, 2] < 0.0)) == 4
+    return sim
+
+
+def test_sliding_robot_decelerates_at_mu_g() -> None:
+    g = GRAVITY_PRESETS["earth"]
+    config = SimConfig(gravity_m_s2=g)
+    s0 = _standing(config).state()
+    sim2 = Simulator(
+        MODEL,
+        config,
+        InitialState(
+            position_m=s0.position_m,
+            velocity_m_s=(2.0, 0.0, 0.0),
+            orientation_wxyz=s0.orientation_wxyz,
+        ),
+    )
+    v = []
+    for _ in range(40):
+        sim2.step()
+        v.append(sim2.state().velocity_m_s[0])
+    decel = -(v[-1] - v[9]) / (30 * DT)
+    assert decel == pytest.approx(config.friction_coefficient * g, rel=0.02)
+
+
+def test_jump_thrust_gives_impulse_over_mass_take_off_velocity() -> None:
+    """The paper's lunar sizing: 21.7 m/s^2 over the 0.4 m stroke -> 4.0 m/s take-off."""
+    g = GRAVITY_PRESETS["moon"]
+    sim = _standing(SimConfig(gravity_m_s2=g))
+    m_total = MODEL.total_mass_kg
+    accel = 21.7  # [m/s^2] paper section IV
+    force = np.array([0.0, 0.0, m_total * (accel + g)])
+    steps = round(4.0 / accel / DT)
+    sim.command_jump_force(force)
+    for _ in range(steps):
+        sim.step()
+        assert sim.state().in_thrust_range.all()
+    sim.command_jump_force((0.0, 0.0, 0.0))
+    take_off = sim.state()
+    predicted = (force[2] - m_total * g) * steps * DT / m_total
+    assert take_off.velocity_m_s[2] == pytest.approx(predicted, rel=0.02)
+    assert take_off.velocity_m_s[2] == pytest.approx(4.0, rel=0.02)
+    # Split over both hemis: no torque, no spin.
+    assert np.linalg.norm(take_off.angular_velocity_rad_s) < 1e-9
+    assert not take_off.in_contact.any()
+
+
+def test_thrust_through_one_hemi_spins_the_robot() -> None:
+    # Feet 0.15 m above the ground: within the 0.4 m stroke, never touching.
+    sim = Simulator(MODEL, SimConfig(gravity_m_s2=0.0), InitialState(position_m=(0.0, 0.0, 0.35)))
+    force = np.array([40.0, 0.0, 40.0])
+    sim.command_jump_force(force, hemi="b")
+    steps = 40
+    angular_impulse = np.zeros(3)
+    for _ in range(steps):
+        s = sim.state()
+        lever = s.mass_positions_world_m[5] - s.position_m  # hemi b body
+        assert s.thrust_force_n[1] == pytest.approx(force)
+        assert not s.thrust_force_n[0].any() and not s.in_contact.any()
+        angular_impulse += np.cross(lever, force) * DT
+        sim.step()
+    s = sim.state()
+    # Impulse over mass (the 1e-5 is the paper's linear damping b = 0.001 N s/m).
+    np.testing.assert_allclose(s.velocity_m_s, force * steps * DT / MODEL.total_mass_kg, rtol=1e-5)
+    # Angular momentum equals the angular impulse of the thrust (rectangle rule: 1e-2).
+    np.testing.assert_allclose(s.angular_momentum_world, angular_impulse, rtol=2e-2)
+    assert s.angular_velocity_rad_s[1] > 0.0  # hemi b at -x pushed up: spin about +y
+
+
+def test_tether_tension_is_the_centripetal_load_of_a_hemi() -> None:
+    sim = _flight(w0=(0.0, 1.28, 0.0))
+    s = sim.state()
+    hemi_mass = MODEL.hemi_mass_kg
+    assert s.tether_tension_n == pytest.approx(hemi_mass * 1.28**2 * 2.8, rel=1e-12)
+    assert not s.tether_slack
+    # The paper's max 0.47 G on a Hemi-SPLITTER at w_y = 1.28 rad/s, r_x = 2.8 m.
+    assert s.hemi_acceleration_g == pytest.approx([0.468, 0.468], abs=1e-3)
+    # Reeling in hard while barely spinning: the tether would have to push.
+    slow = _flight(w0=(0.0, 0.05, 0.0))
+    slow.command_joints(joint_positions_from_radii(MODEL, (1.0, 0.2, 0.2)))
+    slack = []
+    for _ in range(700):
+        slow.step()
+        slack.append(slow.state().tether_slack)
+    assert any(slack) and not all(slack)
