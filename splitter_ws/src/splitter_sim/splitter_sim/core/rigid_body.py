@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 
 from splitter_sim.core.contact import ground_contact_force
-from splitter_sim.core.shape import N_MASSES, Shape
+from splitter_sim.core.shape import Shape
 
 STATE_SIZE = 14
 P, V, Q, L, WORK = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), 13
@@ -78,7 +78,8 @@ class DynamicsParameters:
         self.friction_coefficient = friction_coefficient  # [-]
         self.friction_damping = friction_damping  # [N s/m]
         self.gyroscopic_sign = gyroscopic_sign  # -1: dL/dt = tau - w x L (physics)
-        self.contact = False  # evaluate ground contact in this step
+        # Masses that may touch the ground within this step (empty: no contact checks).
+        self.contact: tuple[int, ...] = ()
         # Jump thrust for this step: tuples (mass index, fx, fy, fz) world [N].
         self.thrust: tuple[tuple[int, float, float, float], ...] = ()
 
@@ -123,15 +124,22 @@ def state_derivative(
     integration and reporting.
     """
     _, _, pz, vx, vy, vz, qw, qx, qy, qz, lx, ly, lz = s[:13]
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
-    wx, wy, wz = angular_velocity(shape, lx, ly, lz)
+    ia, ib, ic, i_d, ie, i_f = shape.inertia_inv
+    hx, hy, hz = shape.h
+    ex, ey, ez = lx - hx, ly - hy, lz - hz
+    wx = ia * ex + i_d * ey + ie * ez  # w = I^-1 (L - h)
+    wy = i_d * ex + ib * ey + i_f * ez
+    wz = ie * ex + i_f * ey + ic * ez
     fx = fy = fz = 0.0  # external non-gravity force, world [N]
     tx = ty = tz = 0.0  # external torque about the COM, body [N m]
     p_rel = 0.0  # power of external forces on the relative motion [W]
     rx, ry, rz = shape.rx, shape.ry, shape.rz
     dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
     forces = [] if out is not None else None
-    for i, gx, gy, gz in prm.thrust:
+    thrust, candidates = prm.thrust, prm.contact
+    if thrust or candidates or out is not None:
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
+    for i, gx, gy, gz in thrust:
         bx = r00 * gx + r10 * gy + r20 * gz
         by = r01 * gx + r11 * gy + r21 * gz
         bz = r02 * gx + r12 * gy + r22 * gz
@@ -142,10 +150,10 @@ def state_derivative(
         ty += rz[i] * bx - rx[i] * bz
         tz += rx[i] * by - ry[i] * bx
         p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
-    if prm.contact:
+    if candidates:
         k, c = prm.contact_stiffness, prm.contact_damping
         mu, ct = prm.friction_coefficient, prm.friction_damping
-        for i in range(N_MASSES):
+        for i in candidates:
             x, y, z = rx[i], ry[i], rz[i]
             height = pz + r20 * x + r21 * y + r22 * z
             if height >= 0.0:
@@ -192,7 +200,6 @@ def state_derivative(
         awx = a * ex + d * ey + e * ez
         awy = d * ex + bb * ey + f * ez
         awz = e * ex + f * ey + cc * ez
-        hx, hy, hz = shape.h
         w_idot_w = (
             ia * wx * wx
             + ib * wy * wy

@@ -127,7 +127,14 @@ def sym_inverse(s: Sequence[float]) -> tuple[float, float, float, float, float, 
 
 
 class ShapeKinematics:
-    """Precomputed constants of the ten-mass forward kinematics of one model."""
+    """Precomputed constants of the ten-mass forward kinematics of one model.
+
+    The limb frames of :func:`~splitter_sim.core.kinematics.limb_frame` are axis
+    aligned: ``u`` is +-y or +-z, ``v = s x`` and ``w = u x v`` the remaining axis.
+    A tip at ``p_u u + p_p (cos q1 v + sin q1 w)`` therefore has x component
+    ``s p_p cos q1`` and y, z components from ``p_u`` and ``p_p sin q1``; the
+    constants below pick them without multiplying by zeros.
+    """
 
     def __init__(self, model: RobotModel) -> None:
         self.model = model
@@ -135,10 +142,23 @@ class ShapeKinematics:
         self.l2 = model.shank_length_m  # [m]
         self.masses = tuple(float(m) for m in model.lumped_masses_kg)  # [kg]
         self.total_mass = float(sum(self.masses))  # [kg]
-        # Limb frames (u, v, w) as plain tuples, order of names.LIMB_NAMES.
-        self.frames = tuple(
-            tuple(tuple(float(c) for c in row) for row in limb_frame(limb)) for limb in range(8)
-        )
+        limbs = []
+        for limb in range(8):
+            u, v, w = limb_frame(limb)
+            if abs(u[0]) > 0.0 or abs(w[0]) > 0.0 or abs(v[1]) + abs(v[2]) > 0.0:
+                raise ValueError("limb frames must be axis aligned with v along x")
+            limbs.append(
+                (
+                    3 * limb,  # first joint index
+                    limb + 1 + limb // 4,  # mass index
+                    float(v[0]),  # s: +1 hemi a, -1 hemi b
+                    float(u[1]),  # y of u
+                    float(u[2]),  # z of u
+                    float(w[1]),  # y of w
+                    float(w[2]),  # z of w
+                )
+            )
+        self.limbs = tuple(limbs)
 
     def evaluate(
         self,
@@ -148,109 +168,116 @@ class ShapeKinematics:
     ) -> Shape:
         """Shape for joint positions ``q`` (25), velocities ``qd`` and accelerations ``qdd``.
 
-        ``qd``/``qdd`` of None mean the joints are at rest (no relative motion).
+        ``qd``/``qdd`` of None (or all zero) mean the joints are at rest.
         """
         moving = qd is not None and (any(qd) or (qdd is not None and any(qdd)))
-        if not moving:
-            qd = qdd = None
-        elif qdd is None:
-            qdd = (0.0,) * 25
         l1, l2 = self.l1, self.l2
-        masses = self.masses
-        rx_half = 0.5 * q[24]
-        # Geometric positions (tether-midpoint frame) and their derivatives.
-        px = [rx_half, 0.0, 0.0, 0.0, 0.0, -rx_half, 0.0, 0.0, 0.0, 0.0]
+        cos, sin = math.cos, math.sin
+        half_tether = 0.5 * q[24]
+        px = [half_tether, 0.0, 0.0, 0.0, 0.0, -half_tether, 0.0, 0.0, 0.0, 0.0]
         py = [0.0] * 10
         pz = [0.0] * 10
-        vx = [0.0] * 10
+        if not moving:
+            for k, i, sg, uy, uz, wy, wz in self.limbs:
+                q1, q2 = q[k], q[k + 1]
+                q23 = q2 + q[k + 2]
+                p_u = l1 * cos(q2) + l2 * cos(q23)
+                p_p = l1 * sin(q2) + l2 * sin(q23)
+                p_w = p_p * sin(q1)
+                px[i] = px[0 if sg > 0.0 else 5] + sg * p_p * cos(q1)
+                py[i] = uy * p_u + wy * p_w
+                pz[i] = uz * p_u + wz * p_w
+            return self._about_com(px, py, pz, None)
+        assert qd is not None
+        if qdd is None:
+            qdd = (0.0,) * 25
+        vb, ab = 0.5 * qd[24], 0.5 * qdd[24]
+        vx = [vb, 0.0, 0.0, 0.0, 0.0, -vb, 0.0, 0.0, 0.0, 0.0]
         vy = [0.0] * 10
         vz = [0.0] * 10
-        ax = [0.0] * 10
+        ax = [ab, 0.0, 0.0, 0.0, 0.0, -ab, 0.0, 0.0, 0.0, 0.0]
         ay = [0.0] * 10
         az = [0.0] * 10
-        if moving:
-            assert qd is not None and qdd is not None
-            vb, ab = 0.5 * qd[24], 0.5 * qdd[24]
-            vx[0], vx[5], ax[0], ax[5] = vb, -vb, ab, -ab
-        for limb in range(8):
-            k = 3 * limb
-            q1, q2, q3 = q[k], q[k + 1], q[k + 2]
-            (ux, uy, uz), (vvx, vvy, vvz), (wx, wy, wz) = self.frames[limb]
-            c1, s1 = math.cos(q1), math.sin(q1)
-            c2, s2 = math.cos(q2), math.sin(q2)
-            c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
-            p_u = l1 * c2 + l2 * c23
-            p_p = l1 * s2 + l2 * s23
-            # v_rot = cos q1 v + sin q1 w; w_rot = -sin q1 v + cos q1 w
-            vrx, vry, vrz = c1 * vvx + s1 * wx, c1 * vvy + s1 * wy, c1 * vvz + s1 * wz
-            i = limb + 1 + (limb // 4)  # mass index: 1..4 hemi a, 6..9 hemi b
-            body = 0 if limb < 4 else 5
-            px[i] = px[body] + p_u * ux + p_p * vrx
-            py[i] = p_u * uy + p_p * vry
-            pz[i] = p_u * uz + p_p * vrz
-            if moving:
-                assert qd is not None and qdd is not None
-                d1, d2, d3 = qd[k], qd[k + 1], qd[k + 2]
-                e1, e2, e3 = qdd[k], qdd[k + 1], qdd[k + 2]
-                d23, e23 = d2 + d3, e2 + e3
-                wrx, wry, wrz = -s1 * vvx + c1 * wx, -s1 * vvy + c1 * wy, -s1 * vvz + c1 * wz
-                dp_u = -l1 * s2 * d2 - l2 * s23 * d23
-                dp_p = l1 * c2 * d2 + l2 * c23 * d23
-                ddp_u = -l1 * (c2 * d2 * d2 + s2 * e2) - l2 * (c23 * d23 * d23 + s23 * e23)
-                ddp_p = l1 * (c2 * e2 - s2 * d2 * d2) + l2 * (c23 * e23 - s23 * d23 * d23)
-                # p = p_u u + p_p v_rot;  d(v_rot)/dt = q1' w_rot;  d(w_rot)/dt = -q1' v_rot
-                cw = p_p * d1
-                vx[i] = vx[body] + dp_u * ux + dp_p * vrx + cw * wrx
-                vy[i] = dp_u * uy + dp_p * vry + cw * wry
-                vz[i] = dp_u * uz + dp_p * vrz + cw * wrz
-                cw2 = 2.0 * dp_p * d1 + p_p * e1
-                cv2 = ddp_p - p_p * d1 * d1
-                ax[i] = ax[body] + ddp_u * ux + cv2 * vrx + cw2 * wrx
-                ay[i] = ddp_u * uy + cv2 * vry + cw2 * wry
-                az[i] = ddp_u * uz + cv2 * vrz + cw2 * wrz
-        return self._about_com(masses, px, py, pz, vx, vy, vz, ax, ay, az, moving)
+        for k, i, sg, uy, uz, wy, wz in self.limbs:
+            q1, q2 = q[k], q[k + 1]
+            q23 = q2 + q[k + 2]
+            d1, d2 = qd[k], qd[k + 1]
+            d23 = d2 + qd[k + 2]
+            e1, e2 = qdd[k], qdd[k + 1]
+            e23 = e2 + qdd[k + 2]
+            c1, s1 = cos(q1), sin(q1)
+            c2, s2 = cos(q2), sin(q2)
+            c23, s23 = cos(q23), sin(q23)
+            a2, b2 = l1 * c2, l1 * s2
+            a23, b23 = l2 * c23, l2 * s23
+            p_u = a2 + a23
+            p_p = b2 + b23
+            dp_u = -b2 * d2 - b23 * d23
+            dp_p = a2 * d2 + a23 * d23
+            ddp_u = -a2 * d2 * d2 - b2 * e2 - a23 * d23 * d23 - b23 * e23
+            ddp_p = a2 * e2 - b2 * d2 * d2 + a23 * e23 - b23 * d23 * d23
+            # components along v (x) and w of p, dp, ddp; u components are p_u, dp_u, ddp_u
+            cw = p_p * d1
+            v_v, v_w = dp_p * c1 - cw * s1, dp_p * s1 + cw * c1
+            cv2 = ddp_p - cw * d1
+            cw2 = 2.0 * dp_p * d1 + p_p * e1
+            a_v, a_w = cv2 * c1 - cw2 * s1, cv2 * s1 + cw2 * c1
+            p_w = p_p * s1
+            body = 0 if sg > 0.0 else 5
+            px[i] = px[body] + sg * p_p * c1
+            py[i] = uy * p_u + wy * p_w
+            pz[i] = uz * p_u + wz * p_w
+            vx[i] = vx[body] + sg * v_v
+            vy[i] = uy * dp_u + wy * v_w
+            vz[i] = uz * dp_u + wz * v_w
+            ax[i] = ax[body] + sg * a_v
+            ay[i] = uy * ddp_u + wy * a_w
+            az[i] = uz * ddp_u + wz * a_w
+        return self._about_com(px, py, pz, (vx, vy, vz, ax, ay, az))
 
-    def _about_com(  # noqa: PLR0917  (hot path)
+    def _about_com(
         self,
-        masses: tuple[float, ...],
         px: list[float],
         py: list[float],
         pz: list[float],
-        vx: list[float],
-        vy: list[float],
-        vz: list[float],
-        ax: list[float],
-        ay: list[float],
-        az: list[float],
-        moving: bool,
+        motion: tuple[list[float], ...] | None,
     ) -> Shape:
+        masses = self.masses
         inv_m = 1.0 / self.total_mass
-        cx = sum(m * x for m, x in zip(masses, px, strict=True)) * inv_m
-        cy = sum(m * y for m, y in zip(masses, py, strict=True)) * inv_m
-        cz = sum(m * z for m, z in zip(masses, pz, strict=True)) * inv_m
+        cx = cy = cz = 0.0
+        for m, x, y, z in zip(masses, px, py, pz, strict=True):
+            cx += m * x
+            cy += m * y
+            cz += m * z
+        cx *= inv_m
+        cy *= inv_m
+        cz *= inv_m
         rx = [x - cx for x in px]
         ry = [y - cy for y in py]
         rz = [z - cz for z in pz]
         sxx = syy = szz = sxy = sxz = syz = 0.0
+        radius2 = 0.0
         for m, x, y, z in zip(masses, rx, ry, rz, strict=True):
-            sxx += m * x * x
-            syy += m * y * y
+            mx, my = m * x, m * y
+            sxx += mx * x
+            syy += my * y
             szz += m * z * z
-            sxy += m * x * y
-            sxz += m * x * z
-            syz += m * y * z
+            sxy += mx * y
+            sxz += mx * z
+            syz += my * z
+            d2 = x * x + y * y + z * z
+            if d2 > radius2:  # noqa: PLR1730  (hot path: no call)
+                radius2 = d2
         inertia = (syy + szz, sxx + szz, sxx + syy, -sxy, -sxz, -syz)
         shape = Shape()
         shape.rx, shape.ry, shape.rz = rx, ry, rz
         shape.com_geometric = (cx, cy, cz)
         shape.inertia = inertia
         shape.inertia_inv = sym_inverse(inertia)
-        shape.radius_max = math.sqrt(
-            max(x * x + y * y + z * z for x, y, z in zip(rx, ry, rz, strict=True))
-        )
-        shape.moving = moving
-        if not moving:
+        shape.radius_max = math.sqrt(radius2)
+        if motion is None:
             zeros = [0.0] * 10
+            shape.moving = False
             shape.vx = shape.vy = shape.vz = zeros
             shape.ax = shape.ay = shape.az = zeros
             shape.inertia_dot = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -258,12 +285,22 @@ class ShapeKinematics:
             shape.kinetic_energy_relative = shape.kinetic_energy_relative_dot = 0.0
             shape.speed_max = 0.0
             return shape
-        dcx = sum(m * v for m, v in zip(masses, vx, strict=True)) * inv_m
-        dcy = sum(m * v for m, v in zip(masses, vy, strict=True)) * inv_m
-        dcz = sum(m * v for m, v in zip(masses, vz, strict=True)) * inv_m
-        ddcx = sum(m * a for m, a in zip(masses, ax, strict=True)) * inv_m
-        ddcy = sum(m * a for m, a in zip(masses, ay, strict=True)) * inv_m
-        ddcz = sum(m * a for m, a in zip(masses, az, strict=True)) * inv_m
+        vx, vy, vz, ax, ay, az = motion
+        dcx = dcy = dcz = ddcx = ddcy = ddcz = 0.0
+        for i in range(N_MASSES):
+            m = masses[i]
+            dcx += m * vx[i]
+            dcy += m * vy[i]
+            dcz += m * vz[i]
+            ddcx += m * ax[i]
+            ddcy += m * ay[i]
+            ddcz += m * az[i]
+        dcx *= inv_m
+        dcy *= inv_m
+        dcz *= inv_m
+        ddcx *= inv_m
+        ddcy *= inv_m
+        ddcz *= inv_m
         vx = [v - dcx for v in vx]
         vy = [v - dcy for v in vy]
         vz = [v - dcz for v in vz]
@@ -271,33 +308,35 @@ class ShapeKinematics:
         ay = [a - ddcy for a in ay]
         az = [a - ddcz for a in az]
         hx = hy = hz = hdx = hdy = hdz = 0.0
-        # T = sum m r dr^T (for dI/dt), kinetic energy and its rate
+        # sum m r dr^T (for dI/dt), kinetic energy and its rate
         txx = tyy = tzz = txy = txz = tyz = 0.0
         ke = ke_dot = 0.0
         speed2 = 0.0
         for i in range(N_MASSES):
             m = masses[i]
-            x, y, z = rx[i], ry[i], rz[i]
+            x, y, z = m * rx[i], m * ry[i], m * rz[i]
             u, v, w = vx[i], vy[i], vz[i]
             a, b, c = ax[i], ay[i], az[i]
-            hx += m * (y * w - z * v)
-            hy += m * (z * u - x * w)
-            hz += m * (x * v - y * u)
-            hdx += m * (y * c - z * b)
-            hdy += m * (z * a - x * c)
-            hdz += m * (x * b - y * a)
-            txx += m * x * u
-            tyy += m * y * v
-            tzz += m * z * w
-            txy += m * (x * v + y * u)
-            txz += m * (x * w + z * u)
-            tyz += m * (y * w + z * v)
+            hx += y * w - z * v
+            hy += z * u - x * w
+            hz += x * v - y * u
+            hdx += y * c - z * b
+            hdy += z * a - x * c
+            hdz += x * b - y * a
+            txx += x * u
+            tyy += y * v
+            tzz += z * w
+            txy += x * v + y * u
+            txz += x * w + z * u
+            tyz += y * w + z * v
             s2 = u * u + v * v + w * w
             ke += m * s2
             ke_dot += m * (u * a + v * b + w * c)
-            speed2 = max(speed2, s2)
+            if s2 > speed2:  # noqa: PLR1730  (hot path: no call)
+                speed2 = s2
         # dI/dt = sum m (2 (r.dr) E - r dr^T - dr r^T)
         trace = txx + tyy + tzz
+        shape.moving = True
         shape.inertia_dot = (
             2.0 * (trace - txx),
             2.0 * (trace - tyy),

@@ -40,6 +40,7 @@ from splitter_sim.core.kinematics import joint_positions_from_radii
 from splitter_sim.core.model import STANDARD_GRAVITY, RobotModel
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
+    angular_velocity,
     rk4_step,
     rotation_matrix,
     state_derivative,
@@ -51,6 +52,7 @@ if TYPE_CHECKING:
 
 HEMI_BODY_INDEX = (0, 5)  # mass index of each hemi body (a, b)
 HEMI_LABELS = ("a", "b")
+ALL_MASSES = tuple(range(10))
 
 
 def _positive(name: str, value: float) -> None:
@@ -273,6 +275,8 @@ class Simulator:
         self._t_ns = 0
         self._dt_ns = config.dt_ns
         self._dt = self._dt_ns * 1e-9
+        # Above this COM height minus body radius nothing touches nor pushes: skip checks.
+        self._far_above_m = config.thrust_stroke_m + 1.0
         self.contact_step_count = 0  # steps integrated with contact sub-steps
 
     # --- construction ------------------------------------------------------------
@@ -336,15 +340,22 @@ class Simulator:
         self._jump_hemi = hemi
 
     # --- integration -------------------------------------------------------------
-    def _lowest_mass_heights(self, s: list[float], shape: Shape) -> tuple[float, float]:
-        _, _, _, _, _, _, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+    def _mass_heights(self, s: list[float], shape: Shape) -> list[float] | None:
+        """World height of every mass [m], or None when all are far above the ground."""
         pz = s[2]
-        low = [math.inf, math.inf]
-        for i in range(10):
-            z = pz + r20 * shape.rx[i] + r21 * shape.ry[i] + r22 * shape.rz[i]
-            hemi = HEMI_OF_MASS[i]
-            low[hemi] = min(low[hemi], z)
-        return low[0], low[1]
+        if pz - shape.radius_max > self._far_above_m:
+            return None
+        _, _, _, _, _, _, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+        return [
+            pz + r20 * x + r21 * y + r22 * z
+            for x, y, z in zip(shape.rx, shape.ry, shape.rz, strict=True)
+        ]
+
+    @staticmethod
+    def _lowest_per_hemi(heights: list[float] | None) -> tuple[float, float]:
+        if heights is None:
+            return math.inf, math.inf
+        return min(heights[:5]), min(heights[5:])
 
     def _thrust_terms(
         self, low: tuple[float, float]
@@ -364,11 +375,14 @@ class Simulator:
         share = 1.0 / len(pushing)
         return tuple((HEMI_BODY_INDEX[h], fx * share, fy * share, fz * share) for h in pushing)
 
-    def _may_touch(self, low: tuple[float, float], s: list[float], shape: Shape) -> bool:
-        if not self.config.ground_contact:
-            return False
+    def _contact_candidates(
+        self, heights: list[float] | None, s: list[float], shape: Shape
+    ) -> tuple[int, ...]:
+        """Masses that can reach the ground within the coming step."""
+        if heights is None or not self.config.ground_contact:
+            return ()
         vx, vy, vz = s[3], s[4], s[5]
-        wx, wy, wz = self._angular_velocity(s, shape)
+        wx, wy, wz = angular_velocity(shape, s[10], s[11], s[12])
         speed = (
             math.sqrt(vx * vx + vy * vy + vz * vz)
             + math.sqrt(wx * wx + wy * wy + wz * wz) * shape.radius_max
@@ -377,13 +391,7 @@ class Simulator:
         dt = self._dt
         # Generous bound on how far a mass can fall within the step (speeds may double).
         reach = 2.0 * speed * dt + (self.config.gravity_m_s2 + 100.0) * dt * dt
-        return min(low) - reach <= 0.0
-
-    @staticmethod
-    def _angular_velocity(s: list[float], shape: Shape) -> tuple[float, float, float]:
-        from splitter_sim.core.rigid_body import angular_velocity
-
-        return angular_velocity(shape, s[10], s[11], s[12])
+        return tuple(i for i, z in enumerate(heights) if z <= reach)
 
     def step(self) -> None:
         """Advance by one step ``dt``: actuators, then RK4 (sub-stepped near the ground)."""
@@ -401,10 +409,10 @@ class Simulator:
         shape0 = self._shape
         if moving:  # right-limit accelerations of the new step
             shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
-        low = self._lowest_mass_heights(s, shape0)
+        heights = self._mass_heights(s, shape0)
         prm = self._prm
-        prm.thrust = self._thrust_terms(low)
-        prm.contact = self._may_touch(low, s, shape0)
+        prm.thrust = self._thrust_terms(self._lowest_per_hemi(heights))
+        prm.contact = self._contact_candidates(heights, s, shape0)
         n = self.config.contact_substeps if prm.contact else 1
         if prm.contact:
             self.contact_step_count += 1
@@ -440,10 +448,10 @@ class Simulator:
         s = self._s
         shape = self._shape
         prm = self._prm
-        low = self._lowest_mass_heights(s, shape)
+        low = self._lowest_per_hemi(self._mass_heights(s, shape))
         thrust = self._thrust_terms(low)
         saved = prm.contact, prm.thrust
-        prm.contact, prm.thrust = self.config.ground_contact, thrust
+        prm.contact, prm.thrust = (ALL_MASSES if self.config.ground_contact else ()), thrust
         out: dict = {}
         try:
             state_derivative(s, shape, prm, out)
