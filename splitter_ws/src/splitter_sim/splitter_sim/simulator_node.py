@@ -1,0 +1,747 @@
+"""``simulator``: the SPLITTER physics as a ROS 2 node, and the clock of the graph.
+
+A thin layer over :class:`splitter_sim.core.simulator.Simulator`. The node is the
+source of simulated time (it publishes ``/clock`` and does not use sim time).
+
+Every step ``t`` it publishes, stamped ``t`` and in this order: ``/clock``,
+``/splitter/joint_states``, ``/splitter/inertia`` (principal moments, the
+diagonal of the body inertia tensor), ``/splitter/odom``, the two contact
+wrenches (world frame, ground on hemi, torque about the hemi body) and
+``/splitter/imu``; ``/splitter/markers`` every ``markers_period_s`` and
+``/diagnostics`` every ``diagnostics_period_s`` of simulated time.
+
+Modes (docs/ARCHITECTURE.md, "Lockstep protocol"):
+
+* ``lockstep``: on a control tick (``t`` a multiple of ``control_period_s``) the
+  node steps only once every lockstep command topic that has a publisher
+  (``/splitter/joint_commands``, ``/splitter/jump_command``) has delivered a
+  message stamped ``t``; between ticks it steps without waiting. Nothing blocks:
+  a steady-clock timer and the command callbacks drive the stepping, so the node
+  shares a ``SingleThreadedExecutor`` with the controllers. A wait longer than
+  ``lockstep_timeout_s`` (wall) is logged with its reason and the node steps on
+  the last good commands. At start-up it waits up to ``startup_wait_s`` for the
+  command publishers and state subscribers to be discovered.
+* ``real_time``: steps on a wall-clock timer at ``dt_s / rate_factor`` and never waits.
+
+Bad input: a command with NaN or infinite values, unknown or missing joint
+names, or values out of the joint / tether range is rejected with a throttled
+warning and the last good command stays in force. Invalid parameters stop the
+node at start-up with a message naming the parameter.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point, Vector3Stamped, WrenchStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import Imu, JointState
+from visualization_msgs.msg import Marker, MarkerArray
+
+from splitter_msgs_py import names
+from splitter_msgs_py.conversions import (
+    DiagnosticStatusSample,
+    MessageValidationError,
+    clock_to_msg,
+    diagnostics_to_msg,
+    imu_to_msg,
+    joint_state_from_msg,
+    joint_state_to_msg,
+    odom_to_msg,
+    stamp_from_msg,
+    stamp_to_msg,
+    vector3_to_msg,
+    wrench_from_msg,
+    wrench_to_msg,
+)
+from splitter_msgs_py.parameters import (
+    InvalidParameterError,
+    ParameterSpec,
+    declare_parameters,
+    rejection_counts,
+    warn_throttled,
+)
+from splitter_msgs_py.qos import qos_for
+from splitter_sim.core.model import RobotModel, gravity_from_name
+from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
+
+NODE_NAME = "simulator"
+# Contact wrench topics (docs/ARCHITECTURE.md); the names live in splitter_msgs_py.names.
+CONTACT_WRENCH_A = names.CONTACT_WRENCH_A
+CONTACT_WRENCH_B = names.CONTACT_WRENCH_B
+LOCKSTEP_TOPICS = (names.JOINT_COMMANDS, names.JUMP_COMMAND)
+STATE_TOPICS = (
+    names.JOINT_STATES,
+    names.INERTIA,
+    names.ODOM,
+    CONTACT_WRENCH_A,
+    CONTACT_WRENCH_B,
+    names.IMU,
+)
+MODES = ("lockstep", "real_time")
+LOCKSTEP_POLL_S = 0.005  # [s] wall period of the lockstep driver timer
+BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
+REAL_TIME_MAX_CATCH_UP = 20  # steps one real-time callback may do to catch up
+MAX_JUMP_FORCE_N = 1.0e4  # [N] a jump command beyond this is rejected as out of range
+_DEFAULT_CONFIG = SimConfig()
+
+PARAMETERS = (
+    ParameterSpec("mode", "lockstep", "stepping mode", choices=MODES),
+    ParameterSpec(
+        "rate_factor",
+        1.0,
+        "real_time mode: simulated seconds per wall second",
+        min_value=1e-3,
+        max_value=1e4,
+    ),
+    ParameterSpec(
+        "lockstep_timeout_s",
+        5.0,
+        "lockstep: longest wall wait for the commands of a tick before stepping on [s]",
+        min_value=1e-3,
+        max_value=3600.0,
+    ),
+    ParameterSpec(
+        "startup_wait_s",
+        3.0,
+        "lockstep: longest wall wait for command publishers and state subscribers at start [s]",
+        min_value=0.0,
+        max_value=600.0,
+    ),
+    ParameterSpec(
+        "duration_s",
+        0.0,
+        "simulated time after which the node stops stepping (0: never) [s]",
+        min_value=0.0,
+        max_value=1e7,
+    ),
+    ParameterSpec("dt_s", 0.005, "simulation step [s]", min_value=1e-4, max_value=0.05),
+    ParameterSpec(
+        "control_period_s",
+        0.01,
+        "lockstep tick period, a multiple of dt_s [s]",
+        min_value=1e-4,
+        max_value=10.0,
+    ),
+    ParameterSpec(
+        "markers_period_s",
+        0.04,
+        "markers period in simulated time, a multiple of dt_s [s]",
+        min_value=1e-4,
+        max_value=100.0,
+    ),
+    ParameterSpec(
+        "diagnostics_period_s",
+        0.1,
+        "diagnostics period in simulated time, a multiple of dt_s [s]",
+        min_value=1e-4,
+        max_value=100.0,
+    ),
+    ParameterSpec(
+        "progress_period_s",
+        1.0,
+        "period in simulated time of the 't = ... s' progress log line [s]",
+        min_value=1e-3,
+        max_value=1e6,
+    ),
+    ParameterSpec("ground_contact", True, "spring-damper ground plane at z = 0"),
+    ParameterSpec("initial_position_m", [0.0, 0.0, 10.0], "centre of mass, world [m]", length=3),
+    ParameterSpec("initial_velocity_m_s", [0.0, 0.0, 0.0], "world frame [m/s]", length=3),
+    ParameterSpec(
+        "initial_orientation_euler_deg",
+        [0.0, 0.0, 0.0],
+        "attitude, extrinsic xyz Euler angles (scipy 'xyz') [deg]",
+        length=3,
+    ),
+    ParameterSpec(
+        "initial_angular_velocity_rad_s",
+        [-0.3, -0.9, 0.9],
+        "body frame [rad/s] (paper Table I)",
+        length=3,
+    ),
+    ParameterSpec("initial_radii_m", [2.8, 0.2, 0.2], "r_x, r_y, r_z [m]", length=3),
+    ParameterSpec(
+        "contact_stiffness_n_m",
+        _DEFAULT_CONFIG.contact_stiffness_n_m,
+        "ground stiffness per lumped mass [N/m]",
+        min_value=1.0,
+        max_value=1e8,
+    ),
+    ParameterSpec(
+        "contact_damping_n_s_m",
+        _DEFAULT_CONFIG.contact_damping_n_s_m,
+        "ground damping per lumped mass [N s/m]",
+        min_value=0.0,
+        max_value=1e6,
+    ),
+    ParameterSpec(
+        "friction_coefficient",
+        _DEFAULT_CONFIG.friction_coefficient,
+        "Coulomb friction coefficient mu [-]",
+        min_value=0.0,
+        max_value=10.0,
+    ),
+    ParameterSpec(
+        "friction_damping_n_s_m",
+        _DEFAULT_CONFIG.friction_damping_n_s_m,
+        "slope of the regularised friction law below the cone [N s/m]",
+        min_value=1e-3,
+        max_value=1e6,
+    ),
+    ParameterSpec(
+        "contact_substeps",
+        _DEFAULT_CONFIG.contact_substeps,
+        "RK4 sub-steps per step while a mass can touch the ground",
+        min_value=1,
+        max_value=100,
+    ),
+    ParameterSpec(
+        "thrust_stroke_m",
+        _DEFAULT_CONFIG.thrust_stroke_m,
+        "leg push-off stroke: a hemi pushes while within this height of the ground [m]",
+        min_value=0.0,
+        max_value=10.0,
+    ),
+)
+
+
+def _period_ns(values: dict, name: str, dt_ns: int) -> int:
+    period = round(float(values[name]) * 1e9)
+    if period % dt_ns != 0:
+        raise InvalidParameterError(
+            f"parameter '{name}' ({values[name]} s) must be a multiple of dt_s ({dt_ns * 1e-9} s)"
+        )
+    return period
+
+
+def _named(exc: ValueError, fields_to_parameters: dict[str, str]) -> InvalidParameterError:
+    """The core's ValueError (which names a SimConfig / InitialState field) as a parameter error."""
+    text = str(exc)
+    for field_name, parameter in fields_to_parameters.items():
+        if field_name in text:
+            return InvalidParameterError(f"parameter '{parameter}': {text}")
+    return InvalidParameterError(f"simulator parameters: {text}")
+
+
+_FIELD_PARAMETERS = {
+    "radii_m": "initial_radii_m",
+    "position_m": "initial_position_m",
+    "velocity_m_s": "initial_velocity_m_s",
+    "angular_velocity_rad_s": "initial_angular_velocity_rad_s",
+    "orientation_wxyz": "initial_orientation_euler_deg",
+    "dt_s": "dt_s",
+    "contact_stiffness_n_m": "contact_stiffness_n_m",
+    "contact_damping_n_s_m": "contact_damping_n_s_m",
+    "friction_coefficient": "friction_coefficient",
+    "friction_damping_n_s_m": "friction_damping_n_s_m",
+    "contact_substeps": "contact_substeps",
+    "thrust_stroke_m": "thrust_stroke_m",
+    "gravity_m_s2": "gravity",
+}
+
+
+class SimulatorNode(Node):
+    """Steps the simulator in lockstep with the controllers or in real time."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._sim, values = self._build_simulator()
+        except InvalidParameterError:
+            self.destroy_node()
+            raise
+        self._mode = str(values["mode"])
+        self._rate_factor = float(values["rate_factor"])
+        self._timeout_s = float(values["lockstep_timeout_s"])
+        self._startup_wait_s = float(values["startup_wait_s"])
+        dt_ns = self._sim.config.dt_ns
+        self._dt_ns = dt_ns
+        self._duration_ns = round(float(values["duration_s"]) * 1e9)
+        self._control_ns = _period_ns(values, "control_period_s", dt_ns)
+        self._markers_ns = _period_ns(values, "markers_period_s", dt_ns)
+        self._diagnostics_ns = _period_ns(values, "diagnostics_period_s", dt_ns)
+        self._progress_ns = max(dt_ns, round(float(values["progress_period_s"]) * 1e9))
+
+        self.finished = Future()
+        self._started = False
+        self._start_wall = time.monotonic()
+        self._run_wall_start: float | None = None
+        self._published_t_ns: int | None = None
+        self._wait_since: float | None = None
+        self._command_stamp: dict[str, int | None] = dict.fromkeys(LOCKSTEP_TOPICS)
+        self._lockstep_timeouts = 0
+        self._slack_events = 0
+        self._was_slack = False
+        self._last_state: SimState | None = None
+        self._publish_failures = 0
+
+        qos = qos_for
+        self._clock_pub = self.create_publisher(ClockMsg, names.CLOCK, qos(names.CLOCK))
+        self._joint_pub = self.create_publisher(
+            JointState, names.JOINT_STATES, qos(names.JOINT_STATES)
+        )
+        self._inertia_pub = self.create_publisher(Vector3Stamped, names.INERTIA, qos(names.INERTIA))
+        self._odom_pub = self.create_publisher(Odometry, names.ODOM, qos(names.ODOM))
+        self._wrench_pubs = tuple(
+            self.create_publisher(WrenchStamped, topic, qos(topic))
+            for topic in (CONTACT_WRENCH_A, CONTACT_WRENCH_B)
+        )
+        self._imu_pub = self.create_publisher(Imu, names.IMU, qos(names.IMU))
+        self._markers_pub = self.create_publisher(MarkerArray, names.MARKERS, qos(names.MARKERS))
+        self._diagnostics_pub = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos(names.DIAGNOSTICS)
+        )
+        self.create_subscription(
+            JointState, names.JOINT_COMMANDS, self._on_joint_commands, qos(names.JOINT_COMMANDS)
+        )
+        self.create_subscription(
+            WrenchStamped, names.JUMP_COMMAND, self._on_jump_command, qos(names.JUMP_COMMAND)
+        )
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        if self._mode == "lockstep":
+            self._timer = self.create_timer(LOCKSTEP_POLL_S, self._advance, clock=steady)
+        else:
+            period = self._sim.config.dt_s / self._rate_factor
+            self._timer = self.create_timer(period, self._on_real_time_timer, clock=steady)
+        self._rt_origin = (time.monotonic(), self._sim.time_ns)
+        self.get_logger().info(
+            f"simulator ready: {self._mode}"
+            + (f" x{self._rate_factor:g}" if self._mode == "real_time" else "")
+            + f", dt {self._sim.config.dt_s * 1e3:g} ms, gravity "
+            f"{self._sim.config.gravity_m_s2:.4g} m/s^2, ground contact "
+            f"{'on' if self._sim.config.ground_contact else 'off'}, duration "
+            + (f"{self._duration_ns * 1e-9:g} s" if self._duration_ns else "unlimited")
+        )
+
+    # --- parameters ------------------------------------------------------------------
+    def _declare_gravity(self) -> float:
+        """``gravity``: a preset name (zero, moon, mars, earth) or a number [m/s^2]."""
+        descriptor = ParameterDescriptor(
+            name="gravity",
+            description="gravity: zero, moon, mars, earth, or a value in m/s^2 (string or number)",
+            dynamic_typing=True,
+        )
+        try:
+            self.declare_parameter("gravity", "zero", descriptor)
+        except ParameterException as exc:
+            raise InvalidParameterError(f"parameter 'gravity': {exc}") from exc
+        value = self.get_parameter("gravity").value
+        if isinstance(value, bool) or not isinstance(value, str | int | float):
+            raise InvalidParameterError(
+                f"parameter 'gravity': expected a name or a number, got {value!r}"
+            )
+        try:
+            return gravity_from_name(value)
+        except ValueError as exc:
+            raise InvalidParameterError(f"parameter 'gravity': {exc}") from exc
+
+    def _build_simulator(self) -> tuple[Simulator, dict]:
+        values = declare_parameters(self, PARAMETERS)
+        gravity = self._declare_gravity()
+        try:
+            config = SimConfig(
+                dt_s=float(values["dt_s"]),
+                gravity_m_s2=gravity,
+                ground_contact=bool(values["ground_contact"]),
+                contact_stiffness_n_m=float(values["contact_stiffness_n_m"]),
+                contact_damping_n_s_m=float(values["contact_damping_n_s_m"]),
+                friction_coefficient=float(values["friction_coefficient"]),
+                friction_damping_n_s_m=float(values["friction_damping_n_s_m"]),
+                contact_substeps=int(values["contact_substeps"]),
+                thrust_stroke_m=float(values["thrust_stroke_m"]),
+            )
+            xyzw = Rotation.from_euler(
+                "xyz", values["initial_orientation_euler_deg"], degrees=True
+            ).as_quat()
+            initial = InitialState(
+                position_m=values["initial_position_m"],
+                velocity_m_s=values["initial_velocity_m_s"],
+                orientation_wxyz=np.roll(xyzw, 1),
+                angular_velocity_rad_s=values["initial_angular_velocity_rad_s"],
+                radii_m=values["initial_radii_m"],
+            )
+            return Simulator(RobotModel(), config, initial), values
+        except ValueError as exc:
+            raise _named(exc, _FIELD_PARAMETERS) from exc
+
+    # --- commands ----------------------------------------------------------------------
+    def _on_joint_commands(self, msg: JointState) -> None:
+        stamp = stamp_from_msg(msg.header.stamp)
+        try:
+            sample = joint_state_from_msg(msg)
+            self._sim.command_joints(sample.position, sample.velocity)
+        except ValueError as exc:  # MessageValidationError is a ValueError
+            warn_throttled(
+                self, "joint_commands", f"rejected joint command at {stamp * 1e-9:.3f} s: {exc}"
+            )
+        self._command_arrived(names.JOINT_COMMANDS, stamp)
+
+    def _on_jump_command(self, msg: WrenchStamped) -> None:
+        stamp = stamp_from_msg(msg.header.stamp)
+        try:
+            sample = wrench_from_msg(msg)
+            if sample.frame_id != names.WORLD_FRAME:
+                raise MessageValidationError(
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{sample.frame_id}'"
+                )
+            if np.linalg.norm(sample.force_n) > MAX_JUMP_FORCE_N:
+                raise MessageValidationError(
+                    f"wrench.force: |F| = {np.linalg.norm(sample.force_n):.4g} N exceeds "
+                    f"{MAX_JUMP_FORCE_N:g} N"
+                )
+            self._sim.command_jump_force(
+                sample.force_n, self._pushing_hemi(sample.force_n, sample.torque_nm)
+            )
+        except ValueError as exc:
+            warn_throttled(
+                self, "jump_command", f"rejected jump command at {stamp * 1e-9:.3f} s: {exc}"
+            )
+        self._command_arrived(names.JUMP_COMMAND, stamp)
+
+    def _pushing_hemi(self, force: np.ndarray, torque: np.ndarray) -> str:
+        """The hemi whose body the commanded torque about the COM places the thrust at.
+
+        The gait phase manager sends ``tau = (p_hemi - p_com) x F``; a zero torque
+        (or a force along the tether) leaves the choice to the simulator ("auto").
+        """
+        state = self._last_state
+        scale = float(np.linalg.norm(force))
+        if state is None or scale == 0.0 or np.linalg.norm(torque) <= 1e-9 * (1.0 + scale):
+            return "auto"
+        levers = state.mass_positions_world_m[[0, 5]] - state.position_m  # hemi bodies
+        errors = [float(np.linalg.norm(torque - np.cross(lever, force))) for lever in levers]
+        return "a" if errors[0] <= errors[1] else "b"
+
+    def _command_arrived(self, topic: str, stamp: int) -> None:
+        self._command_stamp[topic] = stamp
+        if self._mode == "lockstep" and self._started and stamp == self._sim.time_ns:
+            self._advance()
+
+    # --- stepping ----------------------------------------------------------------------
+    def _ready_to_start(self) -> bool:
+        waited = time.monotonic() - self._start_wall
+        missing = [t for t in LOCKSTEP_TOPICS if self.count_publishers(t) == 0]
+        unheard = [t for t in STATE_TOPICS if self.count_subscribers(t) == 0]
+        if (missing or unheard) and waited < self._startup_wait_s:
+            return False
+        if missing or unheard:
+            self.get_logger().warning(
+                f"starting after {waited:.1f} s without "
+                + ", ".join(
+                    [f"a publisher on {t}" for t in missing]
+                    + [f"a subscriber on {t}" for t in unheard]
+                )
+                + ": topics without a publisher are not waited for"
+            )
+        self._run_wall_start = time.monotonic()
+        self.get_logger().info(f"t = {self._sim.time_ns * 1e-9:.2f} s: stepping starts")
+        return True
+
+    def _advance(self) -> None:
+        """Lockstep driver: publish, wait for the tick's commands, step; never blocks."""
+        if self.finished.done():
+            return
+        if not self._started:
+            if not self._ready_to_start():
+                return
+            self._started = True
+        budget_end = time.monotonic() + BATCH_WALL_S
+        while not self.finished.done():
+            t = self._sim.time_ns
+            if self._published_t_ns != t:
+                self._publish_state(t)
+                if self._end_reached(t):
+                    return
+            if t % self._control_ns == 0 and not self._tick_answered(t):
+                return
+            self._sim.step()
+            if time.monotonic() > budget_end:
+                return
+
+    def _tick_answered(self, t: int) -> bool:
+        waiting = [
+            topic
+            for topic in LOCKSTEP_TOPICS
+            if self._command_stamp[topic] != t and self.count_publishers(topic) > 0
+        ]
+        if not waiting:
+            self._wait_since = None
+            return True
+        now = time.monotonic()
+        if self._wait_since is None:
+            self._wait_since = now
+            return False
+        if now - self._wait_since < self._timeout_s:
+            return False
+        self._lockstep_timeouts += 1
+        self.get_logger().warning(
+            f"lockstep: no message stamped t = {t * 1e-9:.3f} s on {', '.join(waiting)} "
+            f"after {now - self._wait_since:.1f} s (lockstep_timeout_s); stepping on the last "
+            f"good commands ({self._lockstep_timeouts} timeouts so far)"
+        )
+        self._wait_since = None
+        return True
+
+    def _on_real_time_timer(self) -> None:
+        """Real-time driver: as many steps as the wall clock (x rate_factor) asks for."""
+        if self.finished.done():
+            return
+        now = time.monotonic()
+        if not self._started:
+            self._started = True
+            self._run_wall_start = now
+            self._rt_origin = (now, self._sim.time_ns)
+            self.get_logger().info(f"t = {self._sim.time_ns * 1e-9:.2f} s: stepping starts")
+            self._publish_state(self._sim.time_ns)
+            return
+        origin_wall, origin_t = self._rt_origin
+        due_t = origin_t + int((now - origin_wall) * self._rate_factor * 1e9)
+        steps = 0
+        while self._sim.time_ns + self._dt_ns <= due_t and not self.finished.done():
+            if steps == REAL_TIME_MAX_CATCH_UP:
+                self.get_logger().warning(
+                    f"real time: {(due_t - self._sim.time_ns) * 1e-9:.3f} s behind at "
+                    f"rate_factor {self._rate_factor:g}; dropping the backlog",
+                    throttle_duration_sec=5.0,
+                )
+                self._rt_origin = (now, self._sim.time_ns)
+                return
+            self._sim.step()
+            steps += 1
+            self._publish_state(self._sim.time_ns)
+            self._end_reached(self._sim.time_ns)
+
+    def _end_reached(self, t: int) -> bool:
+        if not self._duration_ns or t < self._duration_ns:
+            return False
+        self._timer.cancel()
+        self._publish_diagnostics(t, final=True)
+        state = self._last_state
+        wall = time.monotonic() - (self._run_wall_start or self._start_wall)
+        summary = (
+            f"t = {t * 1e-9:.2f} s: simulation finished (duration_s reached) after {wall:.1f} s "
+            f"wall (real-time factor {t * 1e-9 / max(wall, 1e-9):.1f})"
+        )
+        if state is not None:
+            summary += (
+                f"; energy {state.kinetic_energy_j:.6g} J, |H| "
+                f"{np.linalg.norm(state.angular_momentum_world):.6g} kg m^2/s, tension "
+                f"{state.tether_tension_n:.4g} N, {self._slack_events} slack events, "
+                f"{self._lockstep_timeouts} lockstep timeouts, rejected commands "
+                f"{rejection_counts(self) or 'none'}"
+            )
+        self.get_logger().info(summary)
+        self.finished.set_result(True)
+        return True
+
+    # --- outputs ------------------------------------------------------------------------
+    def _publish_state(self, t: int) -> None:
+        state = self._sim.state()
+        self._published_t_ns = t
+        if not state.is_finite():
+            self._publish_failures += 1
+            self.get_logger().error(
+                f"t = {t * 1e-9:.3f} s: non-finite simulator state, not published",
+                throttle_duration_sec=2.0,
+            )
+            return
+        try:
+            msgs = (
+                (self._clock_pub, clock_to_msg(t)),
+                (
+                    self._joint_pub,
+                    joint_state_to_msg(t, state.joint_position, state.joint_velocity),
+                ),
+                (
+                    self._inertia_pub,
+                    vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME),
+                ),
+                (
+                    self._odom_pub,
+                    odom_to_msg(
+                        t,
+                        state.position_m,
+                        state.orientation_wxyz,
+                        state.velocity_m_s,
+                        state.angular_velocity_rad_s,
+                    ),
+                ),
+                *(
+                    (
+                        self._wrench_pubs[h],
+                        wrench_to_msg(
+                            t,
+                            state.contact_force_n[h],
+                            state.contact_torque_n_m[h],
+                            names.WORLD_FRAME,
+                        ),
+                    )
+                    for h in (0, 1)
+                ),
+                (
+                    self._imu_pub,
+                    imu_to_msg(
+                        t,
+                        state.orientation_wxyz,
+                        state.angular_velocity_rad_s,
+                        state.linear_acceleration_m_s2,
+                    ),
+                ),
+            )
+        except MessageValidationError as exc:
+            self._publish_failures += 1
+            self.get_logger().error(
+                f"t = {t * 1e-9:.3f} s: state not published: {exc}", throttle_duration_sec=2.0
+            )
+            return
+        self._last_state = state
+        for publisher, msg in msgs:
+            publisher.publish(msg)
+        if state.tether_slack and not self._was_slack:
+            self._slack_events += 1
+            self.get_logger().warning(
+                f"t = {t * 1e-9:.3f} s: tether slack (tension {state.tether_tension_n:.3g} N)",
+                throttle_duration_sec=1.0,
+            )
+        self._was_slack = state.tether_slack
+        if t % self._markers_ns == 0:
+            self._markers_pub.publish(_markers(t, state))
+        if t % self._diagnostics_ns == 0:
+            self._publish_diagnostics(t)
+        if t % self._progress_ns == 0 and t > 0:
+            wall = time.monotonic() - (self._run_wall_start or self._start_wall)
+            self.get_logger().info(
+                f"t = {t * 1e-9:.2f} s (real-time factor {t * 1e-9 / max(wall, 1e-9):.1f})"
+            )
+
+    def _publish_diagnostics(self, t: int, final: bool = False) -> None:
+        state = self._last_state
+        if state is None:
+            return
+        rejected = rejection_counts(self)
+        h = state.angular_momentum_world
+        level = 0
+        message = "finished" if final else "running"
+        if state.tether_slack:
+            level, message = 1, "tether slack"
+        if self._lockstep_timeouts:
+            message += f", {self._lockstep_timeouts} lockstep timeouts"
+        values = {
+            "kinetic_energy_j": state.kinetic_energy_j,
+            "rotational_energy_j": state.rotational_energy_j,
+            "angular_momentum_world_x_kg_m2_s": float(h[0]),
+            "angular_momentum_world_y_kg_m2_s": float(h[1]),
+            "angular_momentum_world_z_kg_m2_s": float(h[2]),
+            "angular_momentum_norm_kg_m2_s": float(np.linalg.norm(h)),
+            "tether_tension_n": state.tether_tension_n,
+            "tether_slack": bool(state.tether_slack),
+            "slack_events": self._slack_events,
+            "hemi_a_in_contact": bool(state.in_contact[0]),
+            "hemi_b_in_contact": bool(state.in_contact[1]),
+            "hemi_a_contact_normal_force_n": float(state.contact_force_n[0, 2]),
+            "hemi_b_contact_normal_force_n": float(state.contact_force_n[1, 2]),
+            "hemi_a_acceleration_g": float(state.hemi_acceleration_g[0]),
+            "hemi_b_acceleration_g": float(state.hemi_acceleration_g[1]),
+            "actuator_power_w": state.actuator_power_w,
+            "actuator_work_j": state.actuator_work_j,
+            "rejected_joint_commands": rejected.get("joint_commands", 0),
+            "rejected_jump_commands": rejected.get("jump_command", 0),
+            "lockstep_timeouts": self._lockstep_timeouts,
+            "unpublished_states": self._publish_failures,
+            "finished": final,
+        }
+        status = DiagnosticStatusSample(f"{NODE_NAME}: physics", level, message, values)
+        try:
+            self._diagnostics_pub.publish(diagnostics_to_msg(t, [status]))
+        except MessageValidationError as exc:
+            self.get_logger().error(f"diagnostics not published: {exc}", throttle_duration_sec=2.0)
+
+
+def _point(p) -> Point:
+    return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+
+
+def _markers(t_ns: int, state: SimState) -> MarkerArray:
+    """10 mass spheres, the tether line and the limb lines, world frame."""
+    stamp = stamp_to_msg(t_ns)
+    positions = state.mass_positions_world_m
+    out = MarkerArray()
+    for i, p in enumerate(positions):
+        m = Marker()
+        m.header.stamp = stamp
+        m.header.frame_id = names.WORLD_FRAME
+        m.ns = "splitter_masses"
+        m.id = i
+        m.type = Marker.SPHERE
+        m.action = Marker.ADD
+        m.pose.position = _point(p)
+        m.pose.orientation.w = 1.0
+        size = 0.25 if i in (0, 5) else 0.15  # [m] bodies larger than limb tips
+        m.scale.x = m.scale.y = m.scale.z = size
+        m.color.r, m.color.g, m.color.b, m.color.a = (
+            (0.9, 0.4, 0.1, 1.0) if i < 5 else (0.1, 0.5, 0.9, 1.0)
+        )
+        out.markers.append(m)
+    tether = Marker()
+    tether.header.stamp = stamp
+    tether.header.frame_id = names.WORLD_FRAME
+    tether.ns = "splitter_tether"
+    tether.id = 0
+    tether.type = Marker.LINE_STRIP
+    tether.action = Marker.ADD
+    tether.pose.orientation.w = 1.0
+    tether.scale.x = 0.02  # [m] line width
+    tether.color.r = tether.color.g = tether.color.b = 0.8
+    tether.color.a = 1.0
+    tether.points = [_point(positions[0]), _point(positions[5])]
+    out.markers.append(tether)
+    limbs = Marker()
+    limbs.header.stamp = stamp
+    limbs.header.frame_id = names.WORLD_FRAME
+    limbs.ns = "splitter_limbs"
+    limbs.id = 0
+    limbs.type = Marker.LINE_LIST
+    limbs.action = Marker.ADD
+    limbs.pose.orientation.w = 1.0
+    limbs.scale.x = 0.03  # [m] line width
+    limbs.color.r, limbs.color.g, limbs.color.b, limbs.color.a = 0.3, 0.3, 0.3, 1.0
+    for body in (0, 5):
+        for tip in range(body + 1, body + 5):
+            limbs.points += [_point(positions[body]), _point(positions[tip])]
+    out.markers.append(limbs)
+    return out
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run until duration_s (if set), Ctrl-C or shutdown; an invalid parameter exits with 1."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimulatorNode()
+        rclpy.spin_until_future_complete(node, node.finished)
+    except InvalidParameterError as exc:
+        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
