@@ -1,0 +1,317 @@
+"""Tether / limb allocator: principal-inertia setpoints to joint commands.
+
+Each control tick :meth:`TetherLimbAllocator.allocate`
+
+1. projects the setpoint onto the reachable set (:func:`project_inertia`),
+2. moves the three drive coordinates toward the projected radii with a second-order
+   limiter (:func:`limited_step`): the tether length ``L = 2 r_x`` within the reel's
+   speed and acceleration (``RobotModel.tether_speed_max_m_s``,
+   ``tether_acceleration_max_m_s2``) and the knee angles of the y and z limbs
+   within the joint speed (800 RPM after the 10:1 gearbox) and acceleration limits
+   (derated by the hip pitch / knee speed ratio so that the hip pitch, which turns
+   with the knee, obeys them too),
+3. reels the tether out only as fast as keeps it taut: ``r_x'' <= r_x w_perp^2 -
+   T_min / M_h`` (:mod:`splitter_ik.core.tether`), which also bounds how hard a
+   reel-in can be braked, so reel-in speeds are planned with the braking available
+   on the way to the target, the spin there predicted from conserved angular
+   momentum (``w_i I_i`` constant). A reel-in that could not be braked taut is not
+   started; when the spin cannot hold the margin even at rest, the tether is held
+   (never paid out), taut with the centripetal tension ``M_h r_x w_perp^2``,
+4. turns the radii into the 25 joint positions with
+   ``splitter_sim.core.kinematics.joint_positions_from_radii`` and the joint
+   velocities as ``(q_k - q_{k-1}) / control_period_s``, so that commands integrate
+   exactly into the next position.
+
+Deterministic, numpy and math only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_ik.core.projection import project_inertia
+from splitter_ik.core.radial_kinematics import hip_pitch_speed_ratio_max, knee_from_radius
+from splitter_ik.core.rate_limit import AxisLimits, limited_step
+from splitter_ik.core.tether import (
+    hemi_mass_kg,
+    max_taut_radius_acceleration,
+    reeling_tether_tension,
+)
+from splitter_sim.core.kinematics import joint_positions_from_radii
+from splitter_sim.core.model import RobotModel, principal_inertia
+
+TETHER_JOINT_INDEX = 24
+KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
+KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
+_NS_PER_S = 1_000_000_000
+_PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
+_RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
+
+
+@dataclass(frozen=True)
+class AllocatorConfig:
+    """Allocator settings (validated on construction)."""
+
+    control_period_s: float = 0.01  # [s] one command per control tick (100 Hz)
+    # [N] least tether tension kept while reeling; 1 N keeps a light tether straight
+    # and is 4 % of the tension of the paper's spin (9 kg * 2.8 m * 1 rad^2/s^2).
+    tension_margin_n: float = 1.0
+    speed_fraction: float = 1.0  # [-] share of the actuator speed limits used, (0, 1]
+    acceleration_fraction: float = 1.0  # [-] share of the acceleration limits used, (0, 1]
+
+    def __post_init__(self) -> None:
+        for name in ("control_period_s", "tension_margin_n"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
+                raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
+        for name in ("speed_fraction", "acceleration_fraction"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0.0 < value <= 1.0):
+                raise ValueError(f"AllocatorConfig.{name} must be in (0, 1], got {value!r}")
+
+
+@dataclass(frozen=True)
+class Allocation:
+    """Joint commands for one control tick and what limited them."""
+
+    t_ns: int  # [ns] stamp of the setpoint answered
+    joint_position: NDArray[np.float64]  # (25,) [rad, m] order of names.JOINT_NAMES
+    joint_velocity: NDArray[np.float64]  # (25,) [rad/s, m/s]
+    radii_m: NDArray[np.float64]  # (3,) commanded (r_x, r_y, r_z) [m]
+    requested_inertia_kg_m2: NDArray[np.float64]  # (3,) the setpoint as received
+    achieved_inertia_kg_m2: NDArray[np.float64]  # (3,) inertia of the commanded radii
+    saturated: bool  # the setpoint was outside the reachable set (projected)
+    rate_limited: bool  # speed, acceleration or tension limits held the radii back
+    tension_n: float  # [N] predicted tether tension; NaN when no angular velocity given
+    tension_margin_n: float  # [N] tension_n - config.tension_margin_n (< 0: requirement missed)
+
+
+@dataclass(frozen=True)
+class _State:
+    t_ns: int | None
+    drive: NDArray[np.float64]  # (L, knee_y, knee_z) [m, rad, rad]
+    drive_rate: NDArray[np.float64]  # their rates
+    joint_position: NDArray[np.float64]  # (25,)
+
+
+def _frozen(a: ArrayLike) -> NDArray[np.float64]:
+    out = np.array(a, dtype=float)
+    out.flags.writeable = False
+    return out
+
+
+class TetherLimbAllocator:
+    """Turns principal-inertia setpoints into rate-limited joint commands, tick by tick.
+
+    Without ``initial_radii_m`` the first allocation places the robot at the
+    projected setpoint at rest; with them, it starts from rest at those radii.
+    Allocating a stamp equal to the last one recomputes that tick from the state
+    before it (a later setpoint for the same tick replaces the earlier answer);
+    an earlier stamp raises ``ValueError``.
+    """
+
+    def __init__(
+        self,
+        model: RobotModel,
+        config: AllocatorConfig = AllocatorConfig(),
+        initial_radii_m: ArrayLike | None = None,
+    ) -> None:
+        self.model = model
+        self.config = config
+        ratio = max(1.0, hip_pitch_speed_ratio_max(model))
+        knee_limits = AxisLimits(
+            lower=model.knee_min_rad,
+            upper=model.knee_max_rad,
+            speed_max=model.joint_speed_max_rad_s / ratio * config.speed_fraction,
+            acceleration_max=model.joint_acceleration_max_rad_s2
+            / ratio
+            * config.acceleration_fraction,
+        )
+        self._limits = (
+            AxisLimits(
+                lower=model.tether_length_min_m,
+                upper=model.tether_length_max_m,
+                speed_max=model.tether_speed_max_m_s * config.speed_fraction,
+                acceleration_max=model.tether_acceleration_max_m_s2 * config.acceleration_fraction,
+            ),
+            knee_limits,
+            knee_limits,
+        )
+        self._state: _State | None = None
+        self._previous: _State | None = None
+        if initial_radii_m is not None:
+            radii = np.asarray(initial_radii_m, dtype=float)
+            if radii.shape != (3,) or not np.all(np.isfinite(radii)):
+                raise ValueError(f"initial_radii_m must be 3 finite numbers, got {initial_radii_m}")
+            lo, hi = model.radii_min_m, model.radii_max_m
+            if np.any(radii < lo - 1e-12) or np.any(radii > hi + 1e-12):
+                raise ValueError(
+                    f"initial_radii_m {radii.tolist()} outside [{lo.tolist()}, {hi.tolist()}] m"
+                )
+            self._state = self._rest_state(None, np.clip(radii, lo, hi))
+
+    # --- state -------------------------------------------------------------------
+    def _drive_from_radii(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.array(
+            [
+                2.0 * radii[0],
+                knee_from_radius(self.model, float(radii[1])),
+                knee_from_radius(self.model, float(radii[2])),
+            ]
+        )
+
+    def _rest_state(self, t_ns: int | None, radii: NDArray[np.float64]) -> _State:
+        q = joint_positions_from_radii(self.model, radii)
+        drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
+        return _State(t_ns=t_ns, drive=drive, drive_rate=np.zeros(3), joint_position=q)
+
+    @property
+    def radii_m(self) -> NDArray[np.float64] | None:
+        """Radii of the last command (or the initial radii), None before any."""
+        if self._state is None:
+            return None
+        return self._radii_from_drive(self._state.drive)
+
+    def _radii_from_drive(self, drive: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.array(
+            [
+                drive[0] / 2.0,
+                self.model.limb_reach_m(float(drive[1])),
+                self.model.limb_reach_m(float(drive[2])),
+            ]
+        )
+
+    def reset(self, radii_m: ArrayLike | None = None) -> None:
+        """Forget the history; restart from rest at ``radii_m`` (or at the next setpoint)."""
+        fresh = TetherLimbAllocator(self.model, self.config, radii_m)
+        self._state, self._previous = fresh._state, None
+
+    # --- the tick ----------------------------------------------------------------
+    def allocate(
+        self,
+        t_ns: int,
+        inertia_setpoint_kg_m2: ArrayLike,
+        angular_velocity_rad_s: ArrayLike | None = None,
+    ) -> Allocation:
+        """Joint commands answering the setpoint stamped ``t_ns``.
+
+        ``angular_velocity_rad_s`` (body frame) enables the taut-tether limit and the
+        tension report. Raises ``ValueError`` for a non-finite setpoint or angular
+        velocity, or a stamp earlier than the last one; the state is then unchanged.
+        """
+        t_ns = int(t_ns)
+        requested = np.asarray(inertia_setpoint_kg_m2, dtype=float)
+        projection = project_inertia(self.model, requested)  # validates the setpoint
+        w = None
+        if angular_velocity_rad_s is not None:
+            w = np.asarray(angular_velocity_rad_s, dtype=float)
+            if w.shape != (3,) or not np.all(np.isfinite(w)):
+                raise ValueError(f"angular velocity must be 3 finite numbers, got {w.tolist()}")
+        start = self._start_state(t_ns)
+        target = self._drive_from_radii(projection.radii_m)
+        dt = self.config.control_period_s
+        if start is None:  # first tick without initial radii: at the target, at rest
+            state = self._rest_state(t_ns, projection.radii_m)
+            joint_velocity = np.zeros(25)
+            rate_limited = False
+            radius_x_prev, radius_x_accel = float(projection.radii_m[0]), 0.0
+        else:
+            drive = np.empty(3)
+            rate = np.empty(3)
+            radius_x_prev = float(start.drive[0]) / 2.0
+            taut_cap = taut_brake = math.inf
+            if w is not None:  # on the tether length L = 2 r_x
+                margin = self.config.tension_margin_n
+                taut_cap = 2.0 * max_taut_radius_acceleration(self.model, w, radius_x_prev, margin)
+                taut_brake = self._reel_in_braking(start.drive, target, w, margin)
+            for i in range(3):
+                drive[i], rate[i] = limited_step(
+                    float(start.drive[i]),
+                    float(start.drive_rate[i]),
+                    float(target[i]),
+                    dt,
+                    self._limits[i],
+                    positive_acceleration_max=taut_cap if i == 0 else math.inf,
+                    approach_braking_max=taut_brake if i == 0 else None,
+                )
+            radii = self._radii_from_drive(drive)
+            q = joint_positions_from_radii(self.model, radii)
+            drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
+            rate = (drive - start.drive) / dt
+            state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
+            joint_velocity = (q - start.joint_position) / dt
+            rate_limited = bool(np.any(np.abs(drive - target) > _RATE_LIMIT_TOLERANCE))
+            radius_x_accel = float(rate[0] - start.drive_rate[0]) / (2.0 * dt)
+        self._previous, self._state = start, state
+        radii = self._radii_from_drive(state.drive)
+        if w is None:
+            tension = math.nan
+        else:
+            tension = reeling_tether_tension(self.model, w, radius_x_prev, radius_x_accel)
+        return Allocation(
+            t_ns=t_ns,
+            joint_position=_frozen(state.joint_position),
+            joint_velocity=_frozen(joint_velocity),
+            radii_m=_frozen(radii),
+            requested_inertia_kg_m2=_frozen(requested),
+            achieved_inertia_kg_m2=_frozen(principal_inertia(self.model, radii)),
+            saturated=projection.saturated,
+            rate_limited=rate_limited,
+            tension_n=tension,
+            tension_margin_n=tension - self.config.tension_margin_n,
+        )
+
+    def _reel_in_braking(
+        self,
+        drive: NDArray[np.float64],
+        target: NDArray[np.float64],
+        w: NDArray[np.float64],
+        margin_n: float,
+    ) -> float:
+        """Constant deceleration [m/s^2 of L] equivalent to the taut braking left to the target.
+
+        The taut bound on ``r_x''`` is sampled on the way from the target back to the
+        tether's current length, with the spin predicted there from conserved angular
+        momentum about each principal axis (``w_i I_i`` constant). Where it is
+        positive the tether may brake at it (capped by the reel); where it is not, it
+        may only coast. Integrating ``d(v^2) = 2 a dL`` from rest at the target gives
+        the highest reel-in speed from which the tether still stops taut; it is
+        returned as the constant deceleration that gives the same speed.
+        """
+        distance = float(drive[0] - target[0])
+        i_now = principal_inertia(self.model, self._radii_from_drive(drive))
+        caps, lengths = [], []
+        for f in np.linspace(0.0, 1.0, _PATH_SAMPLES):  # 0: target, 1: now
+            point = target + f * (drive - target)
+            radii = self._radii_from_drive(point)
+            w_f = w * i_now / principal_inertia(self.model, radii)
+            caps.append(2.0 * max_taut_radius_acceleration(self.model, w_f, radii[0], margin_n))
+            lengths.append(float(point[0]))
+        if distance <= 0.0:
+            return caps[-1]
+        reel_max = self._limits[0].acceleration_max
+        speed_squared = sum(
+            2.0 * min(reel_max, max(0.0, min(caps[i], caps[i + 1]))) * (lengths[i + 1] - lengths[i])
+            for i in range(len(caps) - 1)
+        )
+        return speed_squared / (2.0 * distance)
+
+    def _start_state(self, t_ns: int) -> _State | None:
+        """State the tick starts from (the one before the last tick if it is repeated)."""
+        state = self._state
+        if state is None or state.t_ns is None:
+            return state
+        if t_ns == state.t_ns:
+            return self._previous
+        if t_ns < state.t_ns:
+            raise ValueError(f"stamp {t_ns} ns is earlier than the last allocation {state.t_ns} ns")
+        return state
+
+    @property
+    def hemi_mass_kg(self) -> float:
+        """Mass the tether holds on each side [kg]."""
+        return hemi_mass_kg(self.model)

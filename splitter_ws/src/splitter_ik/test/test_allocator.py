@@ -1,0 +1,230 @@
+"""Allocator: limits respected, commands consistent, tether kept taut, deterministic."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
+from splitter_ik.core.tether import hemi_mass_kg
+from splitter_sim.core.kinematics import joint_positions_from_radii, radii_from_joint_positions
+from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+
+MODEL = RobotModel()
+DT = 0.01
+PERIOD_NS = 10_000_000
+LIMB = slice(0, 24)
+TETHER = 24
+
+
+def _random_walk_setpoints(seed: int, n: int) -> np.ndarray:
+    """Setpoints that jump around the reachable set and beyond it."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n // 40):
+        radii = rng.uniform(MODEL.radii_min_m * 0.8, MODEL.radii_max_m * 1.2)
+        out += [principal_inertia(MODEL, radii)] * 40
+    return np.array(out)
+
+
+def _run(
+    allocator: TetherLimbAllocator, setpoints: np.ndarray, w: list[float] | None
+) -> list[Allocation]:
+    return [allocator.allocate(k * PERIOD_NS, sp, w) for k, sp in enumerate(setpoints)]
+
+
+@pytest.mark.parametrize("w", [None, [0.0, 1.0, 0.0], [-0.3, -0.9, 0.9], [0.0, 0.2, 0.1]])
+def test_speed_and_acceleration_limits_hold(w: list[float] | None) -> None:
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    allocations = _run(allocator, _random_walk_setpoints(1, 1200), w)
+    q = np.array([a.joint_position for a in allocations])
+    v = np.array([a.joint_velocity for a in allocations])
+    q_prev = np.vstack([joint_positions_from_radii(MODEL, PAPER_INITIAL_RADII_M), q[:-1]])
+    # commands integrate exactly into the next position
+    np.testing.assert_allclose(q_prev + v * DT, q, rtol=0.0, atol=1e-12)
+    dv = np.diff(np.vstack([np.zeros(25), v]), axis=0) / DT
+    eps = 1e-9  # rounding of positions of a few metres, differenced twice over 10 ms
+    assert np.max(np.abs(v[:, LIMB])) <= MODEL.joint_speed_max_rad_s * (1 + eps)
+    assert np.max(np.abs(dv[:, LIMB])) <= MODEL.joint_acceleration_max_rad_s2 * (1 + eps)
+    assert np.max(np.abs(v[:, TETHER])) <= MODEL.tether_speed_max_m_s * (1 + eps)
+    assert np.max(np.abs(dv[:, TETHER])) <= MODEL.tether_acceleration_max_m_s2 * (1 + eps)
+    assert np.all(q[:, TETHER] >= MODEL.tether_length_min_m - eps)
+    assert np.all(q[:, TETHER] <= MODEL.tether_length_max_m + eps)
+    # the limits actually bind somewhere in this sequence
+    assert any(a.rate_limited for a in allocations)
+    if w is None or w[1] ** 2 + w[2] ** 2 >= 1.0:  # enough spin to let the reel run freely
+        assert np.max(np.abs(v[:, TETHER])) == pytest.approx(MODEL.tether_speed_max_m_s, rel=1e-9)
+
+
+def test_commands_are_the_ik_of_the_reported_radii() -> None:
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    for a in _run(allocator, _random_walk_setpoints(2, 400), [0.0, 1.0, 0.0]):
+        np.testing.assert_allclose(a.joint_position, joint_positions_from_radii(MODEL, a.radii_m))
+        np.testing.assert_allclose(radii_from_joint_positions(MODEL, a.joint_position), a.radii_m)
+        np.testing.assert_allclose(a.achieved_inertia_kg_m2, principal_inertia(MODEL, a.radii_m))
+        assert np.all(np.isfinite(a.joint_position)) and np.all(np.isfinite(a.joint_velocity))
+
+
+def test_reachable_setpoint_is_reached_and_held_exactly() -> None:
+    target_radii = np.array([2.1, 0.33, 0.15])
+    target = principal_inertia(MODEL, target_radii)
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    allocations = _run(allocator, np.array([target] * 300), [0.0, 1.0, 0.0])
+    assert allocations[0].rate_limited and not allocations[0].saturated
+    last = allocations[-1]
+    assert not last.rate_limited
+    np.testing.assert_allclose(last.radii_m, target_radii, atol=1e-12)
+    np.testing.assert_allclose(last.achieved_inertia_kg_m2, target, rtol=1e-12)
+    np.testing.assert_allclose(last.joint_velocity, 0.0, atol=1e-9)
+    # the tether travels 1.4 m: at least the time the reel needs at its top speed
+    moving = [a for a in allocations if abs(a.joint_velocity[TETHER]) > 1e-12]
+    assert len(moving) * DT >= 1.4 / MODEL.tether_speed_max_m_s
+
+
+def test_unreachable_setpoint_is_projected_and_flagged() -> None:
+    allocator = TetherLimbAllocator(MODEL)
+    a = allocator.allocate(0, [0.1, 300.0, 100.0], None)
+    assert a.saturated and not a.rate_limited  # first tick without history: at the target
+    assert np.all(a.radii_m <= MODEL.radii_max_m + 1e-12)
+    np.testing.assert_allclose(a.requested_inertia_kg_m2, [0.1, 300.0, 100.0])
+    assert np.all(np.isfinite(a.achieved_inertia_kg_m2))
+
+
+def _spin_about_y(radii: np.ndarray, momentum_y: float) -> list[float]:
+    """Torque-free spin about the principal y axis: w_y = H_y / Iyy (H_y conserved)."""
+    return [0.0, momentum_y / float(principal_inertia(MODEL, radii)[1]), 0.0]
+
+
+@pytest.mark.parametrize("momentum_y", [10.0, 40.0, 150.0])
+def test_tether_reels_only_as_fast_as_keeps_it_taut(momentum_y: float) -> None:
+    """Reel out toward 6 m then in to 1.4 m under a torque-free spin (w from conserved H).
+
+    Paying out slows the spin (H = Iyy w_y), so at low momentum the tether can only
+    go as far as the spin still holds it taut with the margin; there it is held.
+    """
+    margin = 2.0
+    m_h = hemi_mass_kg(MODEL)
+    allocator = TetherLimbAllocator(
+        MODEL, AllocatorConfig(tension_margin_n=margin), initial_radii_m=[1.0, 0.2, 0.2]
+    )
+    setpoints = [principal_inertia(MODEL, [3.0, 0.2, 0.2])] * 1500 + [
+        principal_inertia(MODEL, [0.7, 0.2, 0.2])
+    ] * 1500
+    radii = np.array([1.0, 0.2, 0.2])
+    tether, tensions, margins, spins = [2.0], [], [], []
+    for k, sp in enumerate(setpoints):
+        w = _spin_about_y(radii, momentum_y)
+        a = allocator.allocate(k * PERIOD_NS, sp, w)
+        radii = np.array(a.radii_m)
+        tether.append(a.joint_position[TETHER])
+        tensions.append(a.tension_n)
+        margins.append(a.tension_margin_n)
+        spins.append(w[1])
+    tether, tensions, spins = np.array(tether), np.array(tensions), np.array(spins)
+    speed = np.diff(tether) / DT
+    accel = np.diff(np.concatenate([[0.0], speed])) / DT
+    centripetal = m_h * tether[:-1] / 2.0 * spins**2  # tension of a tether held still
+    np.testing.assert_allclose(tensions, centripetal - m_h * accel / 2.0, atol=1e-6)
+    np.testing.assert_allclose(margins, tensions - margin)
+    # never slack; the margin kept wherever the spin can hold it at all
+    assert np.min(tensions) >= -1e-9
+    assert np.all(tensions >= np.minimum(margin, centripetal) - 1e-6)
+    out_end = tether[1500]
+    if out_end < 6.0 - 1e-9:  # stopped early: only because the spin no longer holds it
+        r_end, w_end = (
+            out_end / 2.0,
+            momentum_y / principal_inertia(MODEL, [out_end / 2, 0.2, 0.2])[1],
+        )
+        assert m_h * r_end * w_end**2 <= margin * 1.05
+        assert momentum_y < 150.0
+    else:
+        assert momentum_y > 10.0
+    assert tether[-1] == pytest.approx(1.4, abs=1e-9)  # back in...
+    assert np.min(tether[1500:]) >= 1.4 - 1e-9  # ...without overshooting
+    if momentum_y == 150.0:  # fast spin: the reel's own limits bind, the full length is reached
+        assert np.max(np.abs(speed)) == pytest.approx(MODEL.tether_speed_max_m_s, rel=1e-9)
+
+
+def test_without_spin_the_tether_is_never_paid_out() -> None:
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=[1.5, 0.2, 0.2])
+    allocations = _run(
+        allocator, np.array([principal_inertia(MODEL, [2.5, 0.3, 0.3])] * 100), [1.0, 0.0, 0.0]
+    )
+    tether = [a.joint_position[TETHER] for a in allocations]
+    assert max(tether) == pytest.approx(3.0, abs=1e-12)
+    assert allocations[-1].radii_m[1] == pytest.approx(0.3)  # the limbs still move
+    assert allocations[-1].rate_limited
+
+
+def test_deterministic_and_same_stamp_replaces_the_tick() -> None:
+    setpoints = _random_walk_setpoints(5, 200)
+    runs = [
+        _run(
+            TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M), setpoints, [0, 1, 0]
+        )
+        for _ in range(2)
+    ]
+    for a, b in zip(*runs, strict=True):
+        assert np.array_equal(a.joint_position, b.joint_position)
+        assert np.array_equal(a.joint_velocity, b.joint_velocity)
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    first = allocator.allocate(0, setpoints[0], [0, 1, 0])
+    allocator.allocate(0, principal_inertia(MODEL, [1.0, 0.15, 0.35]), [0, 1, 0])
+    again = allocator.allocate(0, setpoints[0], [0, 1, 0])
+    assert np.array_equal(first.joint_position, again.joint_position)
+    with pytest.raises(ValueError, match="earlier"):
+        allocator.allocate(-PERIOD_NS, setpoints[0], [0, 1, 0])
+
+
+@pytest.mark.parametrize(
+    ("setpoint", "w"),
+    [
+        ([math.nan, 1.0, 1.0], None),
+        ([1.0, 2.0, math.inf], None),
+        ([1.0, 150.0, 150.0], [0, math.nan, 0]),
+    ],
+)
+def test_bad_input_raises_and_leaves_state_unchanged(setpoint: list[float], w: object) -> None:
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    reference = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    good = principal_inertia(MODEL, [2.0, 0.3, 0.3])
+    allocator.allocate(0, good, [0, 1, 0])
+    reference.allocate(0, good, [0, 1, 0])
+    with pytest.raises(ValueError):
+        allocator.allocate(PERIOD_NS, setpoint, w)  # type: ignore[arg-type]
+    a = allocator.allocate(PERIOD_NS, good, [0, 1, 0])
+    b = reference.allocate(PERIOD_NS, good, [0, 1, 0])
+    assert np.array_equal(a.joint_position, b.joint_position)
+
+
+def test_tension_is_nan_only_without_angular_velocity() -> None:
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=PAPER_INITIAL_RADII_M)
+    a = allocator.allocate(0, principal_inertia(MODEL, PAPER_INITIAL_RADII_M))
+    assert math.isnan(a.tension_n)
+    b = allocator.allocate(PERIOD_NS, principal_inertia(MODEL, PAPER_INITIAL_RADII_M), [0, 1, 0])
+    assert b.tension_n == pytest.approx(hemi_mass_kg(MODEL) * 2.8)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"control_period_s": 0.0},
+        {"control_period_s": math.nan},
+        {"tension_margin_n": -1.0},
+        {"tension_margin_n": 0.0},
+        {"speed_fraction": 1.5},
+        {"acceleration_fraction": 0.0},
+    ],
+)
+def test_config_is_validated(kwargs: dict[str, float]) -> None:
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        AllocatorConfig(**kwargs)
+
+
+def test_initial_radii_are_validated() -> None:
+    with pytest.raises(ValueError, match="initial_radii_m"):
+        TetherLimbAllocator(MODEL, initial_radii_m=[5.0, 0.2, 0.2])
+    with pytest.raises(ValueError, match="initial_radii_m"):
+        TetherLimbAllocator(MODEL, initial_radii_m=[2.0, math.nan, 0.2])
