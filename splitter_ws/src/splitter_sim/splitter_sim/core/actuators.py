@@ -9,14 +9,14 @@ limits of :class:`~splitter_sim.core.model.RobotModel` (actuator output speed
 Within one simulation step the servo acceleration is constant, so the joint
 trajectory is an exact quadratic in time and the integrator can evaluate the
 shape at any of its stage times. The acceleration is chosen by a discrete-time
-law that (1) brakes along the discrete time-optimal braking curve, so the joint
-stops on its target without overshoot, and (2) switches to a two-step deadbeat
-when that is reachable within the limits, so it arrives exactly, at rest.
+law that (1) never lets the closing speed exceed what full braking can still stop
+within the remaining distance, so the joint stops on its target without
+overshoot, and (2) switches to a two-step deadbeat when that is reachable within
+the limits, so it arrives exactly, at rest.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,14 +102,24 @@ def _name(index: int, joint_names: tuple[str, ...] | None) -> str:
     return f"joint {index}" if joint_names is None else f"'{joint_names[index]}'"
 
 
-def braking_speed(distance: NDArray[np.float64], accel_max: NDArray[np.float64], dt: float):
-    """Largest speed from which a discrete servo stops within ``distance``.
+def safe_closing_speed(
+    distance: NDArray[np.float64],
+    closing_speed: NDArray[np.float64],
+    accel_max: NDArray[np.float64],
+    dt: float,
+) -> NDArray[np.float64]:
+    """Largest closing speed at the end of this step from which the servo still stops in time.
 
-    Braking at ``a`` from ``v = n a dt`` covers ``a dt^2 n (n + 1) / 2`` over ``n``
-    steps; solving for ``v`` gives ``a dt (sqrt(2 d / (a dt^2) + 1/4) - 1/2)``.
+    With constant acceleration per step, stopping from speed ``v`` in ``k`` steps of
+    at most ``a`` covers at most ``v^2 / (2 a) + v dt / 2``; a state is safe when that
+    fits in the remaining distance. Requiring it at the end of the step, whose
+    distance is ``d - (v_now + v_end) dt / 2``, gives
+    ``v_end <= -a dt + sqrt((a dt)^2 - a dt v_now + 2 a d)``. Full braking keeps a
+    safe state safe, so the servo never overshoots a resting target.
     """
     a_dt = accel_max * dt
-    return a_dt * (np.sqrt(2.0 * distance / (a_dt * dt) + 0.25) - 0.5)
+    radicand = a_dt * a_dt - a_dt * closing_speed + 2.0 * accel_max * distance
+    return -a_dt + np.sqrt(np.maximum(radicand, 0.0))
 
 
 def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
@@ -125,8 +135,9 @@ def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
     The target moves at ``qd_target``; in error coordinates ``e = q_target - q``
     the law brings ``(e, de/dt)`` to ``(0, 0)``. The two-step deadbeat
     ``a0 = (e + 3/2 de dt) / dt^2`` (then ``a1 = de/dt - a0``) is used when both
-    accelerations and the intermediate speed respect the limits; otherwise the
-    servo accelerates toward the discrete braking curve, saturated.
+    accelerations and the intermediate speed respect the limits and the error
+    reaches zero without changing sign; otherwise the servo accelerates toward
+    the largest safe closing speed (:func:`safe_closing_speed`), saturated.
     """
     a_max = limits.acceleration_max
     v_max = limits.speed_max
@@ -134,8 +145,20 @@ def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
     de = qd_target - qd
     a0 = (e + 1.5 * de * dt) / (dt * dt)
     a1 = de / dt - a0
-    deadbeat = (np.abs(a0) <= a_max) & (np.abs(a1) <= a_max) & (np.abs(qd + a0 * dt) <= v_max)
-    v_des = np.clip(qd_target + np.sign(e) * braking_speed(np.abs(e), a_max, dt), -v_max, v_max)
+    e1 = e + de * dt - 0.5 * a0 * dt * dt
+    de1 = de - a0 * dt
+    deadbeat = (
+        (np.abs(a0) <= a_max)
+        & (np.abs(a1) <= a_max)
+        & (np.abs(qd + a0 * dt) <= v_max)
+        & (e * e1 >= 0.0)
+        & (de * de1 >= 0.0)
+        & (e1 * de1 <= 0.0)
+    )
+    direction = np.sign(e)
+    closing = -direction * de
+    v_end = safe_closing_speed(np.abs(e), closing, a_max, dt)
+    v_des = np.clip(qd_target + direction * v_end, -v_max, v_max)
     a_track = np.clip((v_des - qd) / dt, -a_max, a_max)
     return np.where(deadbeat, a0, a_track)
 
@@ -181,13 +204,3 @@ def snap_arrived(
     q[arrived] = q_target[arrived]
     qd[arrived] = 0.0
     return True
-
-
-def max_abs_ratio(values: NDArray[np.float64], bounds: NDArray[np.float64]) -> float:
-    """max |values| / bounds: 1.0 means a limit is reached exactly."""
-    return float(np.max(np.abs(values) / bounds)) if values.size else 0.0
-
-
-def finite(values: NDArray[np.float64]) -> bool:
-    """All entries finite."""
-    return bool(np.all(np.isfinite(values))) and not math.isnan(float(values.sum()))
