@@ -1,0 +1,402 @@
+"""``ik_tether_allocator``: principal-inertia setpoints to joint commands, as a ROS 2 node.
+
+A thin layer over :class:`splitter_ik.core.allocator.TetherLimbAllocator`.
+
+* ``/splitter/inertia_setpoint`` (Vector3Stamped, Ixx Iyy Izz [kg m^2]) stamped ``t``
+  is answered with ``/splitter/joint_commands`` (JointState, 25 positions and
+  velocities) stamped ``t`` (docs/ARCHITECTURE.md, lockstep protocol item 4).
+* ``/splitter/imu`` gives the body angular velocity for the taut-tether limit.
+* ``/splitter/inertia`` (the measured state): the first one sets the starting radii
+  (``initialize_from_measured_inertia``); and while nothing publishes setpoints, each
+  control tick of it is answered from the last good setpoint, so that a lockstep
+  simulator keeps running without the MPC (with the IMU of the same tick when an
+  IMU publisher exists).
+* ``/diagnostics`` once per ``diagnostics_period_s`` of simulated time (the stamps
+  of the ticks answered): saturation, rate limiting, tension and its margin,
+  rejected and projected setpoints.
+
+Bad input: a setpoint with NaN / infinite or non-positive moments is rejected with
+a throttled warning and the tick is answered from the last good setpoint; an
+unreachable one is projected onto the reachable set (throttled warning). Invalid
+parameters stop the node at start-up with a message naming the parameter. Runs on
+simulated time unless ``use_sim_time`` is overridden.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu, JointState
+
+from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
+from splitter_ik.core.projection import project_inertia
+from splitter_msgs_py import names
+from splitter_msgs_py.conversions import (
+    DiagnosticStatusSample,
+    MessageValidationError,
+    diagnostics_to_msg,
+    imu_from_msg,
+    joint_state_to_msg,
+    stamp_from_msg,
+    vector3_from_msg,
+)
+from splitter_msgs_py.parameters import (
+    InvalidParameterError,
+    ParameterSpec,
+    declare_parameters,
+    rejection_counts,
+    warn_throttled,
+)
+from splitter_msgs_py.qos import qos_for
+from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+
+NODE_NAME = "ik_tether_allocator"
+STATUS_NAME = f"{NODE_NAME}: allocation"
+
+PARAMETERS = (
+    ParameterSpec(
+        "control_period_s",
+        0.01,
+        "control tick: one command per setpoint, joint velocities over this period [s]",
+        min_value=1e-4,
+        max_value=10.0,
+    ),
+    ParameterSpec(
+        "tension_margin_n",
+        1.0,
+        "least tether tension kept while reeling (the tether only pulls) [N]",
+        min_value=1e-6,
+        max_value=1e4,
+    ),
+    ParameterSpec(
+        "speed_fraction",
+        1.0,
+        "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "acceleration_fraction",
+        1.0,
+        "share of the joint and reel acceleration limits used [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "initial_radii_m",
+        [float(v) for v in PAPER_INITIAL_RADII_M],
+        "r_x, r_y, r_z the commands start from when no measured inertia came first [m]",
+        min_value=0.0,
+        max_value=100.0,
+        length=3,
+    ),
+    ParameterSpec(
+        "initialize_from_measured_inertia",
+        True,
+        "start from the radii of the first /splitter/inertia (projected) if it comes first",
+    ),
+    ParameterSpec(
+        "answer_state_without_setpoints",
+        True,
+        "while no node publishes setpoints, answer each control tick of /splitter/inertia "
+        "from the last good setpoint (lockstep keeps running)",
+    ),
+    ParameterSpec(
+        "diagnostics_period_s",
+        0.1,
+        "diagnostics period in simulated time [s]",
+        min_value=1e-3,
+        max_value=100.0,
+    ),
+)
+
+
+class _Window:
+    """What happened since the last diagnostics message."""
+
+    def __init__(self) -> None:
+        self.answered = 0
+        self.fallback = 0
+        self.saturated = 0
+        self.rate_limited = 0
+        self.rejected = 0
+        self.max_saturation = 0.0
+        self.min_margin = math.inf
+        self.max_joint_speed = 0.0
+        self.max_tether_speed = 0.0
+
+
+class IkTetherAllocatorNode(Node):
+    """Answers inertia setpoints with rate-limited, taut-tether joint commands."""
+
+    def __init__(self, **kwargs) -> None:
+        overrides = list(kwargs.pop("parameter_overrides", None) or [])
+        if not any(p.name == "use_sim_time" for p in overrides):
+            overrides.append(Parameter("use_sim_time", value=True))
+        super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
+        try:
+            values = declare_parameters(self, PARAMETERS)
+            self.model = RobotModel()
+            self.config = self._allocator_config(values)
+            self._initial_radii = self._checked_radii(values["initial_radii_m"])
+        except InvalidParameterError:
+            self.destroy_node()
+            raise
+        self._period_ns = round(self.config.control_period_s * 1e9)
+        self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
+        self._init_from_measured = bool(values["initialize_from_measured_inertia"])
+        self._fallback_enabled = bool(values["answer_state_without_setpoints"])
+
+        self.allocator: TetherLimbAllocator | None = None
+        self.last_allocation: Allocation | None = None
+        self._last_good_setpoint: np.ndarray | None = None
+        self._w: np.ndarray | None = None
+        self._imu_t_ns: int | None = None
+        self._pending_fallback_t: int | None = None
+        self._last_answered_t: int | None = None
+        self._last_diagnostics_t: int | None = None
+        self._window = _Window()
+
+        self._commands_pub = self.create_publisher(
+            JointState, names.JOINT_COMMANDS, qos_for(names.JOINT_COMMANDS)
+        )
+        self._diagnostics_pub = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
+        )
+        self.create_subscription(
+            Vector3Stamped,
+            names.INERTIA_SETPOINT,
+            self._on_setpoint,
+            qos_for(names.INERTIA_SETPOINT),
+        )
+        self.create_subscription(Imu, names.IMU, self._on_imu, qos_for(names.IMU))
+        self.create_subscription(
+            Vector3Stamped, names.INERTIA, self._on_inertia, qos_for(names.INERTIA)
+        )
+        self.get_logger().info(
+            f"ik_tether_allocator ready: tick {self.config.control_period_s * 1e3:g} ms, "
+            f"tension margin {self.config.tension_margin_n:g} N, joint speed "
+            f"{self.model.joint_speed_max_rad_s * self.config.speed_fraction:.1f} rad/s, reel "
+            f"{self.model.tether_speed_max_m_s * self.config.speed_fraction:.2f} m/s"
+        )
+
+    # --- parameters ------------------------------------------------------------------
+    @staticmethod
+    def _allocator_config(values: dict) -> AllocatorConfig:
+        try:
+            return AllocatorConfig(
+                control_period_s=float(values["control_period_s"]),
+                tension_margin_n=float(values["tension_margin_n"]),
+                speed_fraction=float(values["speed_fraction"]),
+                acceleration_fraction=float(values["acceleration_fraction"]),
+            )
+        except ValueError as exc:  # the config names its field, the same as the parameter
+            field = next((k for k in values if f".{k} " in str(exc)), "allocator parameters")
+            raise InvalidParameterError(f"parameter '{field}': {exc}") from exc
+
+    def _checked_radii(self, radii: list[float]) -> np.ndarray:
+        r = np.array(radii, dtype=float)
+        lo, hi = self.model.radii_min_m, self.model.radii_max_m
+        if np.any(r < lo) or np.any(r > hi):
+            raise InvalidParameterError(
+                f"parameter 'initial_radii_m' {r.tolist()} must lie within "
+                f"{np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} m "
+                "(tether length and knee range)"
+            )
+        return r
+
+    def _ensure_allocator(self, radii: np.ndarray | None = None) -> TetherLimbAllocator:
+        if self.allocator is None:
+            start = self._initial_radii if radii is None else radii
+            self.allocator = TetherLimbAllocator(self.model, self.config, start)
+        return self.allocator
+
+    # --- callbacks -----------------------------------------------------------------------
+    def _on_imu(self, msg: Imu) -> None:
+        try:
+            sample = imu_from_msg(msg)
+        except MessageValidationError as exc:
+            self._window.rejected += 1
+            warn_throttled(self, "imu", f"rejected /splitter/imu: {exc}; keeping the last good")
+            return
+        self._w = sample.angular_velocity_rad_s
+        self._imu_t_ns = sample.t_ns
+        if self._pending_fallback_t is not None and self._pending_fallback_t == sample.t_ns:
+            self._answer_fallback(sample.t_ns)
+
+    def _on_inertia(self, msg: Vector3Stamped) -> None:
+        try:
+            sample = vector3_from_msg(msg)
+        except MessageValidationError as exc:
+            self._window.rejected += 1
+            warn_throttled(self, "inertia", f"rejected /splitter/inertia: {exc}")
+            return
+        if self.allocator is None and self._init_from_measured:
+            self._ensure_allocator(project_inertia(self.model, sample.vector).radii_m)
+        t_ns = sample.t_ns
+        if not self._fallback_enabled or t_ns % self._period_ns != 0:
+            return
+        if self.count_publishers(names.INERTIA_SETPOINT) > 0:
+            return
+        if self.count_publishers(names.IMU) == 0 or self._imu_t_ns == t_ns:
+            self._answer_fallback(t_ns)
+        else:
+            self._pending_fallback_t = t_ns  # answered when the IMU of this tick arrives
+
+    def _on_setpoint(self, msg: Vector3Stamped) -> None:
+        t_ns = stamp_from_msg(msg.header.stamp)
+        try:
+            setpoint = vector3_from_msg(msg).vector
+            if np.any(setpoint <= 0.0):
+                raise MessageValidationError(f"vector: non-positive moment in {setpoint.tolist()}")
+        except MessageValidationError as exc:
+            self._window.rejected += 1
+            warn_throttled(
+                self,
+                "setpoint",
+                f"rejected /splitter/inertia_setpoint at t = {t_ns * 1e-9:.3f} s: {exc}; "
+                "answering from the last good setpoint",
+            )
+            self._answer(t_ns, self._hold_setpoint())
+            return
+        self._last_good_setpoint = setpoint
+        self._answer(t_ns, setpoint)
+
+    # --- answering -----------------------------------------------------------------------
+    def _hold_setpoint(self) -> np.ndarray:
+        """The last good setpoint, or the inertia of the radii commanded now."""
+        if self._last_good_setpoint is not None:
+            return self._last_good_setpoint
+        radii = self._ensure_allocator().radii_m
+        return principal_inertia(self.model, radii if radii is not None else self._initial_radii)
+
+    def _answer_fallback(self, t_ns: int) -> None:
+        self._pending_fallback_t = None
+        if self._last_answered_t == t_ns:
+            return
+        self._window.fallback += 1
+        self._answer(t_ns, self._hold_setpoint())
+
+    def _answer(self, t_ns: int, setpoint: np.ndarray) -> None:
+        allocator = self._ensure_allocator()
+        try:
+            allocation = allocator.allocate(t_ns, setpoint, self._w)
+        except ValueError as exc:  # time went backwards (simulation restarted)
+            self.get_logger().warning(f"{exc}; restarting the allocator from the last radii")
+            allocator.reset(allocator.radii_m)
+            self._last_diagnostics_t = None
+            allocation = allocator.allocate(t_ns, setpoint, self._w)
+        if allocation.saturated:
+            warn_throttled(
+                self,
+                "projected",
+                f"setpoint {np.round(allocation.requested_inertia_kg_m2, 4).tolist()} kg m^2 at "
+                f"t = {t_ns * 1e-9:.3f} s is unreachable: projected onto the reachable set",
+            )
+        self._commands_pub.publish(
+            joint_state_to_msg(t_ns, allocation.joint_position, allocation.joint_velocity)
+        )
+        self.last_allocation = allocation
+        self._last_answered_t = t_ns
+        self._account(allocation)
+        self._maybe_publish_diagnostics(t_ns)
+
+    def _account(self, a: Allocation) -> None:
+        w = self._window
+        w.answered += 1
+        w.saturated += int(a.saturated)
+        w.rate_limited += int(a.rate_limited)
+        if a.saturated:  # distance from the request to the reachable set
+            projected = project_inertia(self.model, a.requested_inertia_kg_m2)
+            saturation = float(np.linalg.norm(projected.saturation_kg_m2))
+            w.max_saturation = max(w.max_saturation, saturation)
+        if math.isfinite(a.tension_margin_n):
+            w.min_margin = min(w.min_margin, a.tension_margin_n)
+        w.max_joint_speed = max(w.max_joint_speed, float(np.max(np.abs(a.joint_velocity[:24]))))
+        w.max_tether_speed = max(w.max_tether_speed, abs(float(a.joint_velocity[24])))
+
+    def _maybe_publish_diagnostics(self, t_ns: int) -> None:
+        last = self._last_diagnostics_t
+        if last is not None and t_ns // self._diagnostics_ns == last // self._diagnostics_ns:
+            return
+        self._last_diagnostics_t = t_ns
+        self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [self.diagnostics_status()]))
+        self._window = _Window()
+
+    def diagnostics_status(self) -> DiagnosticStatusSample:
+        """The status of the current window (also what the next /diagnostics carries)."""
+        w, a = self._window, self.last_allocation
+        values: dict[str, float | int | str | bool] = {
+            "ticks_answered": w.answered,
+            "ticks_answered_without_setpoint": w.fallback,
+            "setpoints_rejected": w.rejected,
+            "setpoints_projected": w.saturated,
+            "ticks_rate_limited": w.rate_limited,
+            "max_saturation_kg_m2": w.max_saturation,
+            "max_limb_joint_speed_rad_s": w.max_joint_speed,
+            "max_tether_speed_m_s": w.max_tether_speed,
+            "required_tension_n": self.config.tension_margin_n,
+        }
+        for key, count in sorted(rejection_counts(self).items()):
+            values[f"total_rejected_{key}"] = count
+        problems = []
+        if a is not None:
+            values.update(
+                {
+                    "saturated": a.saturated,
+                    "rate_limited": a.rate_limited,
+                    "r_x_m": float(a.radii_m[0]),
+                    "r_y_m": float(a.radii_m[1]),
+                    "r_z_m": float(a.radii_m[2]),
+                    "tether_length_m": float(a.joint_position[24]),
+                }
+            )
+            if math.isfinite(a.tension_n):
+                values["tension_n"] = a.tension_n
+                values["tension_margin_n"] = a.tension_margin_n
+        if math.isfinite(w.min_margin):
+            values["min_tension_margin_n"] = w.min_margin
+            if w.min_margin < 0.0:
+                problems.append("tension below the required margin")
+        elif self._w is None:
+            problems.append("no angular velocity yet: tension not checked")
+        if w.rejected:
+            problems.append(f"{w.rejected} input(s) rejected")
+        if w.saturated:
+            problems.append(f"{w.saturated} setpoint(s) projected onto the reachable set")
+        level = 1 if problems else 0
+        message = "; ".join(problems) if problems else "tracking"
+        if w.rate_limited and not problems:
+            message = "tracking, rate limited"
+        return DiagnosticStatusSample(name=STATUS_NAME, level=level, message=message, values=values)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Spin until Ctrl-C or shutdown; an invalid parameter exits with 1 naming it."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = IkTetherAllocatorNode()
+        rclpy.spin(node)
+    except InvalidParameterError as exc:
+        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
