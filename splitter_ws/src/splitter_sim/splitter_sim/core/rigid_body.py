@@ -133,12 +133,14 @@ def state_derivative(
     fx = fy = fz = 0.0  # external non-gravity force, world [N]
     tx = ty = tz = 0.0  # external torque about the COM, body [N m]
     p_rel = 0.0  # power of external forces on the relative motion [W]
-    rx, ry, rz = shape.rx, shape.ry, shape.rz
-    dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
     forces = [] if out is not None else None
     thrust, candidates = prm.thrust, prm.contact
     if thrust or candidates or out is not None:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
+        if not shape.relative_ready:
+            shape.relative()
+        rx, ry, rz = shape.rx, shape.ry, shape.rz
+        dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
     for i, gx, gy, gz in thrust:
         bx = r00 * gx + r10 * gy + r20 * gz
         by = r01 * gx + r11 * gy + r21 * gz

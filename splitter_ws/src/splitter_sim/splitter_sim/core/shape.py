@@ -40,6 +40,7 @@ class Shape:
     """
 
     __slots__ = (
+        "_geometric",
         "ax",
         "ay",
         "az",
@@ -53,6 +54,7 @@ class Shape:
         "kinetic_energy_relative_dot",
         "moving",
         "radius_max",
+        "relative_ready",
         "rx",
         "ry",
         "rz",
@@ -83,16 +85,41 @@ class Shape:
     radius_max: float  # largest |r_i| [m]
     speed_max: float  # largest |dr_i| [m/s]
 
+    def relative(self) -> Shape:
+        """Fill the per-mass lists (``rx`` ... ``az``) relative to the COM; returns self.
+
+        A moving shape is built from mass-weighted sums only (all the integrator
+        needs in flight); the per-mass lists, needed for contact, thrust and
+        outputs, are made on first use.
+        """
+        if self.relative_ready:
+            return self
+        (px, py, pz, vx, vy, vz, ax, ay, az), (c, dc, ddc) = self._geometric
+        self.rx = [x - c[0] for x in px]
+        self.ry = [y - c[1] for y in py]
+        self.rz = [z - c[2] for z in pz]
+        self.vx = [v - dc[0] for v in vx]
+        self.vy = [v - dc[1] for v in vy]
+        self.vz = [v - dc[2] for v in vz]
+        self.ax = [a - ddc[0] for a in ax]
+        self.ay = [a - ddc[1] for a in ay]
+        self.az = [a - ddc[2] for a in az]
+        self.relative_ready = True
+        return self
+
     def positions(self) -> NDArray[np.float64]:
         """Mass positions (10, 3) relative to the COM, body frame [m]."""
+        self.relative()
         return np.column_stack([self.rx, self.ry, self.rz])
 
     def velocities(self) -> NDArray[np.float64]:
         """Mass velocities (10, 3) relative to the body, body frame [m/s]."""
+        self.relative()
         return np.column_stack([self.vx, self.vy, self.vz])
 
     def accelerations(self) -> NDArray[np.float64]:
         """Mass accelerations (10, 3) relative to the body, body frame [m/s^2]."""
+        self.relative()
         return np.column_stack([self.ax, self.ay, self.az])
 
     def inertia_matrix(self) -> NDArray[np.float64]:
@@ -242,6 +269,8 @@ class ShapeKinematics:
         pz: list[float],
         motion: tuple[list[float], ...] | None,
     ) -> Shape:
+        if motion is not None:
+            return self._about_com_moving(px, py, pz, *motion)
         masses = self.masses
         inv_m = 1.0 / self.total_mass
         cx = cy = cz = 0.0
@@ -271,72 +300,124 @@ class ShapeKinematics:
         inertia = (syy + szz, sxx + szz, sxx + syy, -sxy, -sxz, -syz)
         shape = Shape()
         shape.rx, shape.ry, shape.rz = rx, ry, rz
+        shape.relative_ready = True
         shape.com_geometric = (cx, cy, cz)
         shape.inertia = inertia
         shape.inertia_inv = sym_inverse(inertia)
         shape.radius_max = math.sqrt(radius2)
-        if motion is None:
-            zeros = [0.0] * 10
-            shape.moving = False
-            shape.vx = shape.vy = shape.vz = zeros
-            shape.ax = shape.ay = shape.az = zeros
-            shape.inertia_dot = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            shape.h = shape.h_dot = (0.0, 0.0, 0.0)
-            shape.kinetic_energy_relative = shape.kinetic_energy_relative_dot = 0.0
-            shape.speed_max = 0.0
-            return shape
-        vx, vy, vz, ax, ay, az = motion
-        dcx = dcy = dcz = ddcx = ddcy = ddcz = 0.0
-        for i in range(N_MASSES):
-            m = masses[i]
-            dcx += m * vx[i]
-            dcy += m * vy[i]
-            dcz += m * vz[i]
-            ddcx += m * ax[i]
-            ddcy += m * ay[i]
-            ddcz += m * az[i]
-        dcx *= inv_m
-        dcy *= inv_m
-        dcz *= inv_m
-        ddcx *= inv_m
-        ddcy *= inv_m
-        ddcz *= inv_m
-        vx = [v - dcx for v in vx]
-        vy = [v - dcy for v in vy]
-        vz = [v - dcz for v in vz]
-        ax = [a - ddcx for a in ax]
-        ay = [a - ddcy for a in ay]
-        az = [a - ddcz for a in az]
-        hx = hy = hz = hdx = hdy = hdz = 0.0
-        # sum m r dr^T (for dI/dt), kinetic energy and its rate
+        zeros = [0.0] * 10
+        shape.moving = False
+        shape.vx = shape.vy = shape.vz = zeros
+        shape.ax = shape.ay = shape.az = zeros
+        shape.inertia_dot = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        shape.h = shape.h_dot = (0.0, 0.0, 0.0)
+        shape.kinetic_energy_relative = shape.kinetic_energy_relative_dot = 0.0
+        shape.speed_max = 0.0
+        return shape
+
+    def _about_com_moving(  # noqa: PLR0917  (hot path)
+        self,
+        px: list[float],
+        py: list[float],
+        pz: list[float],
+        vx: list[float],
+        vy: list[float],
+        vz: list[float],
+        ax: list[float],
+        ay: list[float],
+        az: list[float],
+    ) -> Shape:
+        """One pass of mass-weighted sums about the tether midpoint, then shifted to the COM.
+
+        Parallel-axis forms: ``sum m r r' = sum m p p' - M c c'``, ``h = sum m p x dp
+        - M c x dc``, ``1/2 sum m |dr|^2 = 1/2 sum m |dp|^2 - 1/2 M |dc|^2`` and
+        likewise for the rates; the COM stays within centimetres of the midpoint,
+        so nothing cancels.
+        """
+        smx = smy = smz = svx = svy = svz = sax = say = saz = 0.0
+        sxx = syy = szz = sxy = sxz = syz = 0.0
         txx = tyy = tzz = txy = txz = tyz = 0.0
-        ke = ke_dot = 0.0
-        speed2 = 0.0
+        hx = hy = hz = hdx = hdy = hdz = 0.0
+        ke = ke_dot = radius2 = speed2 = 0.0
         for i in range(N_MASSES):
-            m = masses[i]
-            x, y, z = m * rx[i], m * ry[i], m * rz[i]
+            m = self.masses[i]
+            x, y, z = px[i], py[i], pz[i]
             u, v, w = vx[i], vy[i], vz[i]
             a, b, c = ax[i], ay[i], az[i]
-            hx += y * w - z * v
-            hy += z * u - x * w
-            hz += x * v - y * u
-            hdx += y * c - z * b
-            hdy += z * a - x * c
-            hdz += x * b - y * a
-            txx += x * u
-            tyy += y * v
-            tzz += z * w
-            txy += x * v + y * u
-            txz += x * w + z * u
-            tyz += y * w + z * v
+            mx, my, mz = m * x, m * y, m * z
+            smx += mx
+            smy += my
+            smz += mz
+            svx += m * u
+            svy += m * v
+            svz += m * w
+            sax += m * a
+            say += m * b
+            saz += m * c
+            sxx += mx * x
+            syy += my * y
+            szz += mz * z
+            sxy += mx * y
+            sxz += mx * z
+            syz += my * z
+            txx += mx * u
+            tyy += my * v
+            tzz += mz * w
+            txy += mx * v + my * u
+            txz += mx * w + mz * u
+            tyz += my * w + mz * v
+            hx += my * w - mz * v
+            hy += mz * u - mx * w
+            hz += mx * v - my * u
+            hdx += my * c - mz * b
+            hdy += mz * a - mx * c
+            hdz += mx * b - my * a
             s2 = u * u + v * v + w * w
             ke += m * s2
             ke_dot += m * (u * a + v * b + w * c)
+            d2 = x * x + y * y + z * z
+            if d2 > radius2:  # noqa: PLR1730  (hot path: no call)
+                radius2 = d2
             if s2 > speed2:  # noqa: PLR1730  (hot path: no call)
                 speed2 = s2
-        # dI/dt = sum m (2 (r.dr) E - r dr^T - dr r^T)
+        total = self.total_mass
+        inv_m = 1.0 / total
+        cx, cy, cz = smx * inv_m, smy * inv_m, smz * inv_m
+        dcx, dcy, dcz = svx * inv_m, svy * inv_m, svz * inv_m
+        ddcx, ddcy, ddcz = sax * inv_m, say * inv_m, saz * inv_m
+        sxx -= smx * cx
+        syy -= smy * cy
+        szz -= smz * cz
+        sxy -= smx * cy
+        sxz -= smx * cz
+        syz -= smy * cz
+        txx -= smx * dcx
+        tyy -= smy * dcy
+        tzz -= smz * dcz
+        txy -= smx * dcy + smy * dcx
+        txz -= smx * dcz + smz * dcx
+        tyz -= smy * dcz + smz * dcy
+        hx -= smy * dcz - smz * dcy
+        hy -= smz * dcx - smx * dcz
+        hz -= smx * dcy - smy * dcx
+        hdx -= smy * ddcz - smz * ddcy
+        hdy -= smz * ddcx - smx * ddcz
+        hdz -= smx * ddcy - smy * ddcx
+        ke -= svx * dcx + svy * dcy + svz * dcz
+        ke_dot -= svx * ddcx + svy * ddcy + svz * ddcz
+        inertia = (syy + szz, sxx + szz, sxx + syy, -sxy, -sxz, -syz)
         trace = txx + tyy + tzz
+        shape = Shape()
+        shape._geometric = (
+            (px, py, pz, vx, vy, vz, ax, ay, az),
+            ((cx, cy, cz), (dcx, dcy, dcz), (ddcx, ddcy, ddcz)),
+        )
+        shape.relative_ready = False
         shape.moving = True
+        shape.com_geometric = (cx, cy, cz)
+        shape.inertia = inertia
+        shape.inertia_inv = sym_inverse(inertia)
+        # dI/dt = sum m (2 (r.dr) E - r dr^T - dr r^T)
         shape.inertia_dot = (
             2.0 * (trace - txx),
             2.0 * (trace - tyy),
@@ -345,11 +426,11 @@ class ShapeKinematics:
             -txz,
             -tyz,
         )
-        shape.vx, shape.vy, shape.vz = vx, vy, vz
-        shape.ax, shape.ay, shape.az = ax, ay, az
         shape.h = (hx, hy, hz)
         shape.h_dot = (hdx, hdy, hdz)
         shape.kinetic_energy_relative = 0.5 * ke
         shape.kinetic_energy_relative_dot = ke_dot
-        shape.speed_max = math.sqrt(speed2)
+        # Upper bounds (the COM offset added) for the contact look-ahead.
+        shape.radius_max = math.sqrt(radius2) + math.sqrt(cx * cx + cy * cy + cz * cz)
+        shape.speed_max = math.sqrt(speed2) + math.sqrt(dcx * dcx + dcy * dcy + dcz * dcz)
         return shape

@@ -346,6 +346,7 @@ class Simulator:
         if pz - shape.radius_max > self._far_above_m:
             return None
         _, _, _, _, _, _, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+        shape.relative()
         return [
             pz + r20 * x + r21 * y + r22 * z
             for x, y, z in zip(shape.rx, shape.ry, shape.rz, strict=True)
@@ -446,7 +447,7 @@ class Simulator:
     def state(self) -> SimState:
         """Snapshot of the current state and the derived quantities."""
         s = self._s
-        shape = self._shape
+        shape = self._shape.relative()
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
         thrust = self._thrust_terms(low)
