@@ -313,7 +313,9 @@ class SimulatorNode(Node):
         if self._mode == "lockstep":
             self._timer = self.create_timer(LOCKSTEP_POLL_S, self._advance, clock=steady)
         else:
-            period = self._sim.config.dt_s / self._rate_factor
+            period = max(
+                self._sim.config.dt_s / self._rate_factor, 0.001
+            )  # [s] catch-up does the rest
             self._timer = self.create_timer(period, self._on_real_time_timer, clock=steady)
         self._rt_origin = (time.monotonic(), self._sim.time_ns)
         self.get_logger().info(
