@@ -9,6 +9,7 @@ import pytest
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.tether import hemi_mass_kg
+from splitter_sim.core.actuators import actuator_limits
 from splitter_sim.core.kinematics import joint_positions_from_radii, radii_from_joint_positions
 from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
@@ -45,6 +46,10 @@ def test_speed_and_acceleration_limits_hold(w: list[float] | None) -> None:
     # commands integrate exactly into the next position
     np.testing.assert_allclose(q_prev + v * DT, q, rtol=0.0, atol=1e-12)
     dv = np.diff(np.vstack([np.zeros(25), v]), axis=0) / DT
+    # the simulator rejects a command over a limit: speeds and positions hold exactly
+    limits = actuator_limits(MODEL)
+    assert np.all(np.abs(v) <= limits.speed_max)
+    assert np.all((q >= limits.position_min) & (q <= limits.position_max))
     eps = 1e-9  # rounding of positions of a few metres, differenced twice over 10 ms
     assert np.max(np.abs(v[:, LIMB])) <= MODEL.joint_speed_max_rad_s * (1 + eps)
     assert np.max(np.abs(dv[:, LIMB])) <= MODEL.joint_acceleration_max_rad_s2 * (1 + eps)

@@ -141,6 +141,12 @@ class TetherLimbAllocator:
             knee_limits,
             knee_limits,
         )
+        self._speed = np.full(25, model.joint_speed_max_rad_s * config.speed_fraction)
+        self._speed[TETHER_JOINT_INDEX] = self._limits[0].speed_max
+        limb_min = [-model.hip_abduction_limit_rad, -model.hip_pitch_limit_rad, model.knee_min_rad]
+        limb_max = [model.hip_abduction_limit_rad, model.hip_pitch_limit_rad, model.knee_max_rad]
+        self._q_min = np.array(limb_min * 8 + [model.tether_length_min_m])
+        self._q_max = np.array(limb_max * 8 + [model.tether_length_max_m])
         self._state: _State | None = None
         self._previous: _State | None = None
         if initial_radii_m is not None:
@@ -165,9 +171,13 @@ class TetherLimbAllocator:
         )
 
     def _rest_state(self, t_ns: int | None, radii: NDArray[np.float64]) -> _State:
-        q = joint_positions_from_radii(self.model, radii)
+        q = self._joint_positions(radii)
         drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
         return _State(t_ns=t_ns, drive=drive, drive_rate=np.zeros(3), joint_position=q)
+
+    def _joint_positions(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
+        """IK of the radii, clipped by the rounding of acos at the knee-range ends."""
+        return np.clip(joint_positions_from_radii(self.model, radii), self._q_min, self._q_max)
 
     @property
     def radii_m(self) -> NDArray[np.float64] | None:
@@ -239,11 +249,13 @@ class TetherLimbAllocator:
                     approach_braking_max=taut_brake if i == 0 else None,
                 )
             radii = self._radii_from_drive(drive)
-            q = joint_positions_from_radii(self.model, radii)
+            q = self._joint_positions(radii)
             drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
             rate = (drive - start.drive) / dt
             state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
-            joint_velocity = (q - start.joint_position) / dt
+            # (q - q_prev) / dt, clipped by the rounding of x + v dt: consumers (the
+            # simulator's servo) reject any command over the speed limit
+            joint_velocity = np.clip((q - start.joint_position) / dt, -self._speed, self._speed)
             rate_limited = bool(np.any(np.abs(drive - target) > _RATE_LIMIT_TOLERANCE))
             radius_x_accel = float(rate[0] - start.drive_rate[0]) / (2.0 * dt)
         self._previous, self._state = start, state
