@@ -42,10 +42,11 @@ from std_msgs.msg import String
 
 from splitter_mpc.core.gait import (
     ATTITUDE_REFERENCE_MODES,
+    NS_PER_S,
     GaitConfig,
     GaitOutput,
     GaitPhaseMachine,
-    jump_plan_from_arrays,
+    gait_config_from_parameters,
     seconds_to_ns,
 )
 from splitter_msgs_py import names
@@ -71,6 +72,7 @@ from splitter_msgs_py.parameters import (
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 
 NODE_NAME = "gait_phase_manager"
+DEFAULTS = GaitConfig()
 TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
 TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
 MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
@@ -86,61 +88,61 @@ PLAN_PARAMETERS = (
 PARAMETERS = (
     ParameterSpec(
         "stance_force_threshold_n",
-        2.0,
+        DEFAULTS.stance_force_threshold_n,
         "contact normal force above which a hemi is in stance [N]",
         min_value=1e-3,
         max_value=1e4,
     ),
     ParameterSpec(
         "liftoff_debounce_s",
-        0.02,
+        DEFAULTS.liftoff_debounce_ns / NS_PER_S,
         "no stance for longer than this means lift-off [s]",
         min_value=0.0,
         max_value=1.0,
     ),
     ParameterSpec(
         "landed_speed_m_s",
-        0.05,
+        DEFAULTS.landed_speed_m_s,
         "centre-of-mass speed below which the robot is at rest [m/s]",
         min_value=1e-4,
         max_value=10.0,
     ),
     ParameterSpec(
         "landed_angular_speed_rad_s",
-        0.05,
+        DEFAULTS.landed_angular_speed_rad_s,
         "angular speed below which the robot is at rest [rad/s]",
         min_value=1e-4,
         max_value=10.0,
     ),
     ParameterSpec(
         "landed_dwell_s",
-        0.5,
+        DEFAULTS.landed_dwell_ns / NS_PER_S,
         "time at rest in stance before LANDED [s]",
         min_value=0.0,
         max_value=60.0,
     ),
     ParameterSpec(
         "landed_exit_factor",
-        2.0,
+        DEFAULTS.landed_exit_factor,
         "LANDED is left when speed or angular speed exceed this times the rest thresholds",
         min_value=1.0,
         max_value=100.0,
     ),
     ParameterSpec(
         "w_ref_rad_s",
-        [0.0, 1.0, 0.0],
+        list(DEFAULTS.w_ref_rad_s),
         "flight angular velocity reference, base frame [rad/s]",
         length=3,
     ),
     ParameterSpec(
         "landing_w_ref_rad_s",
-        [0.0, 0.0, 0.0],
+        list(DEFAULTS.landing_w_ref_rad_s),
         "angular velocity reference during landing, base frame [rad/s]",
         length=3,
     ),
     ParameterSpec(
         "attitude_reference",
-        "integrate_w_ref",
+        DEFAULTS.attitude_reference,
         "attitude reference: hold the first measured attitude, or propagate it with w_ref",
         choices=ATTITUDE_REFERENCE_MODES,
     ),
@@ -252,19 +254,18 @@ class GaitPhaseManagerNode(Node):
             f"'{config.attitude_reference}', w_ref {list(config.w_ref_rad_s)} rad/s"
         )
 
+    @property
+    def config(self) -> GaitConfig:
+        """The validated configuration of the gait phase machine."""
+        return self._machine.config
+
     # -- parameters ----------------------------------------------------------------------
     def _read_parameters(self) -> tuple[GaitConfig, tuple[int, int]]:
         values = declare_parameters(self, PARAMETERS)
         values.update(declare_plan_arrays(self))
-        hemis = declare_string_array(
+        values["jump_hemis"] = declare_string_array(
             self, "jump_hemis", "pushing hemi per planned jump: 'a', 'b' or 'auto'"
         )
-        try:
-            jumps = jump_plan_from_arrays(
-                values["jump_times_s"], values["jump_forces_n"], values["jump_durations_s"], hemis
-            )
-        except ValueError as exc:
-            raise _named_parameter_error(exc) from exc
         control_ns = seconds_to_ns(values["control_period_s"])
         diagnostics_ns = seconds_to_ns(values["diagnostics_period_s"])
         if diagnostics_ns % control_ns != 0:
@@ -272,21 +273,8 @@ class GaitPhaseManagerNode(Node):
                 f"parameter 'diagnostics_period_s' ({values['diagnostics_period_s']} s) must be "
                 f"a multiple of control_period_s ({values['control_period_s']} s)"
             )
-        w_ref = values["w_ref_rad_s"]
-        landing = values["landing_w_ref_rad_s"]
         try:
-            config = GaitConfig(
-                jumps=jumps,
-                stance_force_threshold_n=values["stance_force_threshold_n"],
-                liftoff_debounce_ns=seconds_to_ns(values["liftoff_debounce_s"]),
-                landed_speed_m_s=values["landed_speed_m_s"],
-                landed_angular_speed_rad_s=values["landed_angular_speed_rad_s"],
-                landed_dwell_ns=seconds_to_ns(values["landed_dwell_s"]),
-                landed_exit_factor=values["landed_exit_factor"],
-                w_ref_rad_s=(w_ref[0], w_ref[1], w_ref[2]),
-                landing_w_ref_rad_s=(landing[0], landing[1], landing[2]),
-                attitude_reference=values["attitude_reference"],
-            )
+            config = gait_config_from_parameters(values)
         except ValueError as exc:
             raise _named_parameter_error(exc) from exc
         return config, (control_ns, diagnostics_ns)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from splitter_bringup.core.scenario import load_scenario
 from splitter_mpc.core.gait import (
@@ -14,6 +16,7 @@ from splitter_mpc.core.gait import (
     GaitPhase,
     GaitPhaseMachine,
     PlannedJump,
+    gait_config_from_parameters,
     jump_plan_from_arrays,
     jump_plan_parameters,
     jump_wrench,
@@ -29,6 +32,7 @@ MOON_G = 9.80665 / 6.0  # [m/s^2]
 TOTAL_MASS_KG = 18.0  # [kg] 2 x (3.0 + 4 x 1.5)
 RADIUS_X_M = 2.8  # [m]
 STANCE_N = 20.0  # [N] a normal force well above the stance threshold
+CONFIG_FILE = Path(__file__).resolve().parents[1] / "config" / "gait_phase_manager.yaml"
 
 
 def jump(time_s: float, hemi: str = "auto", duration_s: float = 0.3, force=(40.0, 0.0, 40.0)):
@@ -440,3 +444,31 @@ def test_scenario_plan_round_trips_through_parameters() -> None:
     assert plan == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
     assert [j.hemi for j in plan] == ["b", "auto"]
     assert plan[1].time_ns == 5_000_000_000 and plan[0].duration_ns == 600_000_000
+
+
+def test_config_from_the_shipped_parameters_and_a_scenario() -> None:
+    params = yaml.safe_load(CONFIG_FILE.read_text(encoding="utf-8"))
+    params = params["gait_phase_manager"]["ros__parameters"]
+    scenario = load_scenario("lunar_jumping")
+    params.update(jump_plan_parameters(scenario.jumps))
+    params["attitude_reference"] = scenario.controller.attitude_reference
+    config = gait_config_from_parameters(params)
+    assert config.jumps == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
+    assert config.liftoff_debounce_ns == round(params["liftoff_debounce_s"] * 1e9)
+    assert config.landed_dwell_ns == round(params["landed_dwell_s"] * 1e9)
+    assert config.w_ref_rad_s == tuple(params["w_ref_rad_s"])
+    assert gait_config_from_parameters({}) == GaitConfig()
+
+
+@pytest.mark.parametrize(
+    ("params", "name"),
+    [
+        ({"liftoff_debounce_s": -0.1}, "liftoff_debounce_s"),
+        ({"landed_dwell_s": math.inf}, "landed_dwell_s"),
+        ({"landing_w_ref_rad_s": [0.0, 0.0]}, "landing_w_ref_rad_s"),
+        ({"jump_times_s": [0.0], "jump_forces_n": [1.0, 2.0, 3.0]}, "jump_durations_s"),
+    ],
+)
+def test_config_from_parameters_names_the_bad_one(params: dict, name: str) -> None:
+    with pytest.raises(ValueError, match=f"^{name}"):
+        gait_config_from_parameters(params)

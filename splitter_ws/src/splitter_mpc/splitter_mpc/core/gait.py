@@ -68,10 +68,10 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -333,6 +333,55 @@ class GaitConfig:
                 f"attitude_reference: must be one of {ATTITUDE_REFERENCE_MODES}, "
                 f"got {self.attitude_reference!r}"
             )
+
+
+def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
+    """The machine's configuration from the node's parameters (seconds, flat jump arrays).
+
+    ``params`` uses the names of ``config/gait_phase_manager.yaml`` (its
+    ``ros__parameters`` mapping, optionally updated with
+    :func:`jump_plan_parameters`); missing ones take :class:`GaitConfig`'s
+    defaults and other keys are ignored. The node and the library closed loop
+    both build their machine here, so they agree. ``ValueError`` names the
+    parameter.
+    """
+    defaults = GaitConfig()
+    jumps = jump_plan_from_arrays(
+        list(params.get("jump_times_s") or []),
+        list(params.get("jump_forces_n") or []),
+        list(params.get("jump_durations_s") or []),
+        [str(h) for h in params.get("jump_hemis") or []],
+    )
+
+    def seconds(name: str, default_ns: int) -> int:
+        value = float(params.get(name, default_ns / NS_PER_S))
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"{name}: must be finite and >= 0, got {value}")
+        return seconds_to_ns(value)
+
+    def number(name: str, default: float) -> float:
+        return float(params.get(name, default))
+
+    def triple(name: str, default: tuple[float, float, float]) -> tuple[float, float, float]:
+        v = _vector3(params.get(name, default), name)
+        return (float(v[0]), float(v[1]), float(v[2]))
+
+    return GaitConfig(
+        jumps=jumps,
+        stance_force_threshold_n=number(
+            "stance_force_threshold_n", defaults.stance_force_threshold_n
+        ),
+        liftoff_debounce_ns=seconds("liftoff_debounce_s", defaults.liftoff_debounce_ns),
+        landed_speed_m_s=number("landed_speed_m_s", defaults.landed_speed_m_s),
+        landed_angular_speed_rad_s=number(
+            "landed_angular_speed_rad_s", defaults.landed_angular_speed_rad_s
+        ),
+        landed_dwell_ns=seconds("landed_dwell_s", defaults.landed_dwell_ns),
+        landed_exit_factor=number("landed_exit_factor", defaults.landed_exit_factor),
+        w_ref_rad_s=triple("w_ref_rad_s", defaults.w_ref_rad_s),
+        landing_w_ref_rad_s=triple("landing_w_ref_rad_s", defaults.landing_w_ref_rad_s),
+        attitude_reference=str(params.get("attitude_reference", defaults.attitude_reference)),
+    )
 
 
 @dataclass(frozen=True)
