@@ -29,14 +29,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.exceptions import (
-    ParameterException,
-    ParameterUninitializedException,
-)
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
@@ -186,16 +182,18 @@ def declare_string_array(node: Node, name: str, description: str) -> list[str]:
     """Declare a string-array parameter (empty when not given) and read it.
 
     ``ParameterSpec`` covers numbers and strings; a string array is declared here
-    with the same error contract (``InvalidParameterError`` naming it).
+    with the same error contract (``InvalidParameterError`` naming it). Typing is
+    dynamic because an empty list arrives untyped (a params file's ``[]`` is
+    unset, an override's ``[]`` is a byte array): any empty value means none.
     """
-    descriptor = ParameterDescriptor(name=name, description=description)
+    descriptor = ParameterDescriptor(name=name, description=description, dynamic_typing=True)
     try:
-        node.declare_parameter(name, Parameter.Type.STRING_ARRAY, descriptor)
-        value = node.get_parameter(name).value
-    except ParameterUninitializedException:
-        return []
+        node.declare_parameter(name, [], descriptor)
     except ParameterException as exc:
         raise InvalidParameterError(f"parameter '{name}': {exc}") from exc
+    value = node.get_parameter(name).value
+    if value is None or (isinstance(value, list | tuple | bytes) and len(value) == 0):
+        return []
     if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
         raise InvalidParameterError(f"parameter '{name}' must be a list of strings, got {value!r}")
     return list(value)
