@@ -123,8 +123,9 @@ def declare_parameters(node: Node, specs: Sequence[ParameterSpec]) -> dict[str, 
         except ParameterException as exc:
             raise InvalidParameterError(f"parameter '{spec.name}': {exc}") from exc
         raw = node.get_parameter(spec.name).value
-        if isinstance(spec.default, list) and raw is not None:
-            raw = list(raw)
+        if isinstance(spec.default, list):
+            # rclpy cannot type an empty YAML list and leaves such a parameter unset.
+            raw = [] if raw is None else list(raw)
         values[spec.name] = spec.validate(raw)
     return values
 

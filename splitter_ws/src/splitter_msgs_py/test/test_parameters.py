@@ -82,3 +82,18 @@ def test_warn_throttled_counts_every_rejection(ros_context) -> None:
         assert rejection_counts(node) == {"nan_command": 5, "unknown_joint": 1}
     finally:
         node.destroy_node()
+
+
+def test_empty_list_from_a_parameter_file(ros_context, tmp_path) -> None:
+    params = tmp_path / "p.yaml"
+    params.write_text("param_test:\n  ros__parameters:\n    jump_times_s: []\n")
+    node = rclpy.create_node(
+        "param_test",
+        context=ros_context,
+        cli_args=["--ros-args", "--params-file", str(params)],
+    )
+    try:
+        values = declare_parameters(node, [ParameterSpec("jump_times_s", [0.0], "jump times")])
+        assert values["jump_times_s"] == []
+    finally:
+        node.destroy_node()
