@@ -21,7 +21,8 @@ Modes (docs/ARCHITECTURE.md, "Lockstep protocol"):
   ``lockstep_timeout_s`` (wall) is logged with its reason and the node steps on
   the last good commands. At start-up it waits up to ``startup_wait_s`` for the
   command publishers and state subscribers to be discovered.
-* ``real_time``: steps on a wall-clock timer at ``dt_s / rate_factor`` and never waits.
+* ``real_time``: steps on a wall-clock timer at ``dt_s / rate_factor`` and never
+  waits for commands (at start-up, up to ``startup_wait_s`` for state subscribers).
 
 Bad input: a command with NaN or infinite values, unknown or missing joint
 names, or values out of the joint / tether range is rejected with a throttled
@@ -116,7 +117,7 @@ PARAMETERS = (
     ParameterSpec(
         "startup_wait_s",
         3.0,
-        "lockstep: longest wall wait for command publishers and state subscribers at start [s]",
+        "longest wall wait at start for state subscribers (and, lockstep, command publishers) [s]",
         min_value=0.0,
         max_value=600.0,
     ),
@@ -434,7 +435,9 @@ class SimulatorNode(Node):
     # --- stepping ----------------------------------------------------------------------
     def _ready_to_start(self) -> bool:
         waited = time.monotonic() - self._start_wall
-        missing = [t for t in LOCKSTEP_TOPICS if self.count_publishers(t) == 0]
+        missing = [
+            t for t in LOCKSTEP_TOPICS if self._mode == "lockstep" and self.count_publishers(t) == 0
+        ]
         unheard = [t for t in STATE_TOPICS if self.count_subscribers(t) == 0]
         if (missing or unheard) and waited < self._startup_wait_s:
             return False
@@ -502,10 +505,10 @@ class SimulatorNode(Node):
             return
         now = time.monotonic()
         if not self._started:
+            if not self._ready_to_start():
+                return
             self._started = True
-            self._run_wall_start = now
             self._rt_origin = (now, self._sim.time_ns)
-            self.get_logger().info(f"t = {self._sim.time_ns * 1e-9:.2f} s: stepping starts")
             self._publish_state(self._sim.time_ns)
             return
         origin_wall, origin_t = self._rt_origin
