@@ -4,7 +4,9 @@ A thin layer over :class:`splitter_ik.core.allocator.TetherLimbAllocator`.
 
 * ``/splitter/inertia_setpoint`` (Vector3Stamped, Ixx Iyy Izz [kg m^2]) stamped ``t``
   is answered with ``/splitter/joint_commands`` (JointState, 25 positions and
-  velocities) stamped ``t`` (docs/ARCHITECTURE.md, lockstep protocol item 4).
+  velocities) stamped ``t`` (docs/ARCHITECTURE.md, lockstep protocol item 4): a point
+  of a piecewise-linear reference, the position planned at ``t`` and the velocity
+  held until the next tick (:class:`~splitter_ik.core.allocator.Allocation`).
 * ``/splitter/imu`` gives the body angular velocity for the taut-tether limit.
 * ``/splitter/inertia`` (the measured state): the first one sets the starting radii
   (``initialize_from_measured_inertia``); and while nothing publishes setpoints, each
@@ -84,9 +86,17 @@ PARAMETERS = (
         max_value=1.0,
     ),
     ParameterSpec(
-        "acceleration_fraction",
-        1.0,
-        "share of the joint and reel acceleration limits used [-]",
+        "limb_acceleration_fraction",
+        AllocatorConfig.limb_acceleration_fraction,
+        "share of the joint acceleration limit (143 rad/s^2) commanded; the rest is servo "
+        "headroom that keeps hip and knee in step [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "tether_acceleration_fraction",
+        AllocatorConfig.tether_acceleration_fraction,
+        "share of the reel start-up acceleration limit (5 m/s^2) used [-]",
         min_value=1e-3,
         max_value=1.0,
     ),
@@ -196,7 +206,8 @@ class IkTetherAllocatorNode(Node):
                 control_period_s=float(values["control_period_s"]),
                 tension_margin_n=float(values["tension_margin_n"]),
                 speed_fraction=float(values["speed_fraction"]),
-                acceleration_fraction=float(values["acceleration_fraction"]),
+                limb_acceleration_fraction=float(values["limb_acceleration_fraction"]),
+                tether_acceleration_fraction=float(values["tether_acceleration_fraction"]),
             )
         except ValueError as exc:  # the config names its field, the same as the parameter
             field = next((k for k in values if f".{k} " in str(exc)), "allocator parameters")

@@ -42,9 +42,9 @@ def test_speed_and_acceleration_limits_hold(w: list[float] | None) -> None:
     allocations = _run(allocator, _random_walk_setpoints(1, 1200), w)
     q = np.array([a.joint_position for a in allocations])
     v = np.array([a.joint_velocity for a in allocations])
-    q_prev = np.vstack([joint_positions_from_radii(MODEL, PAPER_INITIAL_RADII_M), q[:-1]])
-    # commands integrate exactly into the next position
-    np.testing.assert_allclose(q_prev + v * DT, q, rtol=0.0, atol=1e-12)
+    # a piecewise-linear trajectory from the initial radii: q_{k+1} = q_k + v_k dt
+    np.testing.assert_allclose(q[0], joint_positions_from_radii(MODEL, PAPER_INITIAL_RADII_M))
+    np.testing.assert_allclose(q[:-1] + v[:-1] * DT, q[1:], rtol=0.0, atol=1e-12)
     dv = np.diff(np.vstack([np.zeros(25), v]), axis=0) / DT
     # the simulator rejects a command over a limit: speeds and positions hold exactly
     limits = actuator_limits(MODEL)
@@ -52,9 +52,13 @@ def test_speed_and_acceleration_limits_hold(w: list[float] | None) -> None:
     assert np.all((q >= limits.position_min) & (q <= limits.position_max))
     eps = 1e-9  # rounding of positions of a few metres, differenced twice over 10 ms
     assert np.max(np.abs(v[:, LIMB])) <= MODEL.joint_speed_max_rad_s * (1 + eps)
-    assert np.max(np.abs(dv[:, LIMB])) <= MODEL.joint_acceleration_max_rad_s2 * (1 + eps)
+    config = allocator.config  # commanded accelerations keep the servo headroom
+    limb_accel = MODEL.joint_acceleration_max_rad_s2 * config.limb_acceleration_fraction
+    tether_accel = MODEL.tether_acceleration_max_m_s2 * config.tether_acceleration_fraction
+    assert np.max(np.abs(dv[:, LIMB])) <= limb_accel * (1 + eps)
     assert np.max(np.abs(v[:, TETHER])) <= MODEL.tether_speed_max_m_s * (1 + eps)
-    assert np.max(np.abs(dv[:, TETHER])) <= MODEL.tether_acceleration_max_m_s2 * (1 + eps)
+    assert np.max(np.abs(dv[:, TETHER])) <= tether_accel * (1 + eps)
+    assert np.max(np.abs(dv[:, LIMB])) == pytest.approx(limb_accel, rel=1e-9)  # and use it
     assert np.all(q[:, TETHER] >= MODEL.tether_length_min_m - eps)
     assert np.all(q[:, TETHER] <= MODEL.tether_length_max_m + eps)
     # the limits actually bind somewhere in this sequence
@@ -118,25 +122,27 @@ def test_tether_reels_only_as_fast_as_keeps_it_taut(momentum_y: float) -> None:
         principal_inertia(MODEL, [0.7, 0.2, 0.2])
     ] * 1500
     radii = np.array([1.0, 0.2, 0.2])
-    tether, tensions, margins, spins = [2.0], [], [], []
+    tether, speed, tensions, margins, spins = [], [], [], [], []
     for k, sp in enumerate(setpoints):
         w = _spin_about_y(radii, momentum_y)
         a = allocator.allocate(k * PERIOD_NS, sp, w)
-        radii = np.array(a.radii_m)
+        radii = np.array(allocator.radii_m)  # where the joints are at the next tick
         tether.append(a.joint_position[TETHER])
+        speed.append(a.joint_velocity[TETHER])
         tensions.append(a.tension_n)
         margins.append(a.tension_margin_n)
         spins.append(w[1])
-    tether, tensions, spins = np.array(tether), np.array(tensions), np.array(spins)
-    speed = np.diff(tether) / DT
-    accel = np.diff(np.concatenate([[0.0], speed])) / DT
-    centripetal = m_h * tether[:-1] / 2.0 * spins**2  # tension of a tether held still
+    tether, speed = np.array(tether), np.array(speed)
+    tensions, spins = np.array(tensions), np.array(spins)
+    np.testing.assert_allclose(tether[:-1] + speed[:-1] * DT, tether[1:], atol=1e-12)
+    accel = np.diff(np.concatenate([[0.0], speed])) / DT  # the corner at each tick
+    centripetal = m_h * tether / 2.0 * spins**2  # tension of a tether held still
     np.testing.assert_allclose(tensions, centripetal - m_h * accel / 2.0, atol=1e-6)
     np.testing.assert_allclose(margins, tensions - margin)
     # never slack; the margin kept wherever the spin can hold it at all
     assert np.min(tensions) >= -1e-9
     assert np.all(tensions >= np.minimum(margin, centripetal) - 1e-6)
-    out_end = tether[1500]
+    out_end = tether[1499]
     if out_end < 6.0 - 1e-9:  # stopped early: only because the spin no longer holds it
         r_end, w_end = (
             out_end / 2.0,
@@ -148,8 +154,12 @@ def test_tether_reels_only_as_fast_as_keeps_it_taut(momentum_y: float) -> None:
         assert momentum_y > 10.0
     assert tether[-1] == pytest.approx(1.4, abs=1e-9)  # back in...
     assert np.min(tether[1500:]) >= 1.4 - 1e-9  # ...without overshooting
+    reel_accel = MODEL.tether_acceleration_max_m_s2 * allocator.config.tether_acceleration_fraction
     if momentum_y == 150.0:  # fast spin: the reel's own limits bind, the full length is reached
         assert np.max(np.abs(speed)) == pytest.approx(MODEL.tether_speed_max_m_s, rel=1e-9)
+        assert np.max(accel) == pytest.approx(reel_accel, rel=1e-9)
+    if momentum_y == 10.0:  # slow spin: the taut bound, not the reel, limits the pay-out
+        assert np.max(accel[:1500]) < 0.1 * reel_accel
 
 
 def test_without_spin_the_tether_is_never_paid_out() -> None:
@@ -220,7 +230,8 @@ def test_tension_is_nan_only_without_angular_velocity() -> None:
         {"tension_margin_n": -1.0},
         {"tension_margin_n": 0.0},
         {"speed_fraction": 1.5},
-        {"acceleration_fraction": 0.0},
+        {"limb_acceleration_fraction": 0.0},
+        {"tether_acceleration_fraction": 1.01},
     ],
 )
 def test_config_is_validated(kwargs: dict[str, float]) -> None:

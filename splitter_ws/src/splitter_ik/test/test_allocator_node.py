@@ -109,13 +109,15 @@ def test_setpoints_answered_with_their_stamp_bad_ones_rejected(ros_context) -> N
             assert np.all(np.isfinite(s.position)) and np.all(np.isfinite(s.velocity))
         # the commands start from the initial radii and head for the target
         radii = [radii_from_joint_positions(MODEL, s.position) for s in samples]
-        assert radii[0][0] < PAPER_INITIAL_RADII_M[0]
+        assert radii[0][0] == pytest.approx(PAPER_INITIAL_RADII_M[0])  # planned at t = 0
+        assert radii[1][0] < PAPER_INITIAL_RADII_M[0]
         assert radii[-1][1] == pytest.approx(0.3, abs=1e-9)  # the limbs got there
         assert np.all(np.diff([r[0] for r in radii]) <= 1e-12)  # the tether only reels in
         # a rejected tick holds the last good setpoint: the tether keeps going the same way
         for k in bad:
-            dq = samples[k].position - samples[k - 1].position
+            dq = samples[k + 1].position - samples[k].position
             np.testing.assert_allclose(samples[k].velocity, dq / 0.01, atol=1e-9)
+            assert samples[k].velocity[24] < 0.0
         # diagnostics at 0, 0.1, 0.2 s of simulated time
         _spin(executor, lambda: len(probe.diagnostics) == 3)
         diag_stamps = [conv.stamp_from_msg(m.header.stamp) for m in probe.diagnostics]

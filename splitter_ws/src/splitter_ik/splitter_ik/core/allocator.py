@@ -18,9 +18,16 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    started; when the spin cannot hold the margin even at rest, the tether is held
    (never paid out), taut with the centripetal tension ``M_h r_x w_perp^2``,
 4. turns the radii into the 25 joint positions with
-   ``splitter_sim.core.kinematics.joint_positions_from_radii`` and the joint
-   velocities as ``(q_k - q_{k-1}) / control_period_s``, so that commands integrate
-   exactly into the next position.
+   ``splitter_sim.core.kinematics.joint_positions_from_radii``.
+
+An allocation is a point of a piecewise-linear joint trajectory: ``joint_position``
+is where the joints are planned to be at ``t_ns`` (the previous allocation's
+position plus its velocity times ``control_period_s``), ``joint_velocity`` the
+constant velocity that takes them to the next planned position by
+``t_ns + control_period_s``. So ``q_{k+1} = q_k + v_k dt`` exactly, and a servo that
+follows ``q_k + v_k (t - t_k)`` (the simulator's command extrapolation) tracks a
+continuous reference. The response to a new setpoint therefore shows in the
+velocity at once and in the position one tick later.
 
 Deterministic, numpy and math only.
 """
@@ -60,15 +67,27 @@ class AllocatorConfig:
     # [N] least tether tension kept while reeling; 1 N keeps a light tether straight
     # and is 4 % of the tension of the paper's spin (9 kg * 2.8 m * 1 rad^2/s^2).
     tension_margin_n: float = 1.0
-    speed_fraction: float = 1.0  # [-] share of the actuator speed limits used, (0, 1]
-    acceleration_fraction: float = 1.0  # [-] share of the acceleration limits used, (0, 1]
+    speed_fraction: float = 1.0  # [-] share of the joint and reel speed limits used, (0, 1]
+    # Shares of the acceleration limits commanded, (0, 1]. The limits are the actuators'
+    # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
+    # follows the reference needs headroom. Measured with the simulator's servos in the
+    # spin_stabilization set-up (setpoint steps, test_allocator_with_simulator.py):
+    # limbs at 1.0 / 0.5 / 0.25: hip-knee mismatch swings load the tether to -57 / -7 N
+    # (slack) / +34 N (taut); tether at 1.0 / 0.9: the reel overshoots a stop by
+    # 59 / 0.5 mm.
+    limb_acceleration_fraction: float = 0.25
+    tether_acceleration_fraction: float = 0.9
 
     def __post_init__(self) -> None:
         for name in ("control_period_s", "tension_margin_n"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
-        for name in ("speed_fraction", "acceleration_fraction"):
+        for name in (
+            "speed_fraction",
+            "limb_acceleration_fraction",
+            "tether_acceleration_fraction",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0.0 < value <= 1.0):
                 raise ValueError(f"AllocatorConfig.{name} must be in (0, 1], got {value!r}")
@@ -79,14 +98,14 @@ class Allocation:
     """Joint commands for one control tick and what limited them."""
 
     t_ns: int  # [ns] stamp of the setpoint answered
-    joint_position: NDArray[np.float64]  # (25,) [rad, m] order of names.JOINT_NAMES
-    joint_velocity: NDArray[np.float64]  # (25,) [rad/s, m/s]
-    radii_m: NDArray[np.float64]  # (3,) commanded (r_x, r_y, r_z) [m]
+    joint_position: NDArray[np.float64]  # (25,) [rad, m] planned at t_ns, names.JOINT_NAMES order
+    joint_velocity: NDArray[np.float64]  # (25,) [rad/s, m/s] held until t_ns + control period
+    radii_m: NDArray[np.float64]  # (3,) (r_x, r_y, r_z) of joint_position [m]
     requested_inertia_kg_m2: NDArray[np.float64]  # (3,) the setpoint as received
-    achieved_inertia_kg_m2: NDArray[np.float64]  # (3,) inertia of the commanded radii
+    achieved_inertia_kg_m2: NDArray[np.float64]  # (3,) inertia of radii_m
     saturated: bool  # the setpoint was outside the reachable set (projected)
-    rate_limited: bool  # speed, acceleration or tension limits held the radii back
-    tension_n: float  # [N] predicted tether tension; NaN when no angular velocity given
+    rate_limited: bool  # limits keep the next planned radii short of the projected setpoint
+    tension_n: float  # [N] tether tension at t_ns (planned reel acceleration); NaN without w
     tension_margin_n: float  # [N] tension_n - config.tension_margin_n (< 0: requirement missed)
 
 
@@ -129,14 +148,15 @@ class TetherLimbAllocator:
             speed_max=model.joint_speed_max_rad_s / ratio * config.speed_fraction,
             acceleration_max=model.joint_acceleration_max_rad_s2
             / ratio
-            * config.acceleration_fraction,
+            * config.limb_acceleration_fraction,
         )
         self._limits = (
             AxisLimits(
                 lower=model.tether_length_min_m,
                 upper=model.tether_length_max_m,
                 speed_max=model.tether_speed_max_m_s * config.speed_fraction,
-                acceleration_max=model.tether_acceleration_max_m_s2 * config.acceleration_fraction,
+                acceleration_max=model.tether_acceleration_max_m_s2
+                * config.tether_acceleration_fraction,
             ),
             knee_limits,
             knee_limits,
@@ -181,7 +201,7 @@ class TetherLimbAllocator:
 
     @property
     def radii_m(self) -> NDArray[np.float64] | None:
-        """Radii of the last command (or the initial radii), None before any."""
+        """Radii planned for the next tick (or the initial radii), None before any."""
         if self._state is None:
             return None
         return self._radii_from_drive(self._state.drive)
@@ -226,6 +246,7 @@ class TetherLimbAllocator:
         dt = self.config.control_period_s
         if start is None:  # first tick without initial radii: at the target, at rest
             state = self._rest_state(t_ns, projection.radii_m)
+            here = state
             joint_velocity = np.zeros(25)
             rate_limited = False
             radius_x_prev, radius_x_accel = float(projection.radii_m[0]), 0.0
@@ -253,20 +274,21 @@ class TetherLimbAllocator:
             drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
             rate = (drive - start.drive) / dt
             state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
-            # (q - q_prev) / dt, clipped by the rounding of x + v dt: consumers (the
+            here = start
+            # (q_next - q) / dt, clipped by the rounding of x + v dt: consumers (the
             # simulator's servo) reject any command over the speed limit
-            joint_velocity = np.clip((q - start.joint_position) / dt, -self._speed, self._speed)
+            joint_velocity = np.clip((q - here.joint_position) / dt, -self._speed, self._speed)
             rate_limited = bool(np.any(np.abs(drive - target) > _RATE_LIMIT_TOLERANCE))
             radius_x_accel = float(rate[0] - start.drive_rate[0]) / (2.0 * dt)
         self._previous, self._state = start, state
-        radii = self._radii_from_drive(state.drive)
+        radii = self._radii_from_drive(here.drive)
         if w is None:
             tension = math.nan
         else:
             tension = reeling_tether_tension(self.model, w, radius_x_prev, radius_x_accel)
         return Allocation(
             t_ns=t_ns,
-            joint_position=_frozen(state.joint_position),
+            joint_position=_frozen(here.joint_position),
             joint_velocity=_frozen(joint_velocity),
             radii_m=_frozen(radii),
             requested_inertia_kg_m2=_frozen(requested),
