@@ -67,7 +67,13 @@ def test_colcon_installs_data_files(colcon_install: Path) -> None:
 
 @pytest.mark.parametrize(("package", "script", "args", "long_running"), SCRIPTS)
 def test_installed_console_script_starts(
-    colcon_install: Path, package: str, script: str, args: list[str], long_running: bool
+    colcon_install: Path,
+    package: str,
+    script: str,
+    *,
+    args: list[str],
+    long_running: bool,
+    tmp_path: Path,
 ) -> None:
     path = colcon_install / package / "lib" / package / script
     assert path.exists(), f"{path} not installed"
@@ -82,7 +88,12 @@ def test_installed_console_script_starts(
         assert "usage" in out.stdout.lower()
         return
     proc = subprocess.Popen(
-        [str(path), *args], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        [str(path), *args],
+        env=env,
+        cwd=tmp_path,  # a recorder writes its default bag folder here
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     try:
         time.sleep(4.0)

@@ -277,15 +277,17 @@ def tether_tension(
 def tether_tension_3d(
     model: RobotModel, angular_velocity_rad_s: ArrayLike, radius_x_m: float
 ) -> float:
-    """Centripetal tether tension of a spinning body in free fall [N].
+    """Centripetal tether tension of a spinning SPLITTER in free fall, fixed radii [N].
 
-    The tether pulls hemi body a toward the centre with the centripetal force of
-    the body mass about the x axis: m_x r_x (w_y^2 + w_z^2). It reduces to the
-    paper's m_x w_y^2 r_x for a spin about y. Gravity does not load the tether in
-    free fall (both hemis fall together).
+    The tether holds a whole Hemi-SPLITTER (body and the four limbs mounted on
+    it) on its circle about the x axis: M_hemi r_x (w_y^2 + w_z^2). The paper's
+    ``tether_tension`` counts the body mass m_x only, a third of the load with the
+    paper's masses; both are positive exactly when the robot spins about an axis
+    across the tether, so the taut condition is the same. Gravity does not load
+    the tether in free fall (both hemis fall together).
     """
     w = np.asarray(angular_velocity_rad_s, dtype=float)
-    return model.body_mass_kg * radius_x_m * float(w[1] ** 2 + w[2] ** 2)
+    return model.hemi_mass_kg * radius_x_m * float(w[1] ** 2 + w[2] ** 2)
 
 
 def gravity_from_name(name_or_value: str | float) -> float:
