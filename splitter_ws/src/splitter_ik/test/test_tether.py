@@ -10,7 +10,12 @@ from splitter_ik.core.tether import (
     max_taut_radius_acceleration,
     reeling_tether_tension,
 )
-from splitter_sim.core.model import RobotModel, principal_inertia, tether_tension
+from splitter_sim.core.model import (
+    RobotModel,
+    principal_inertia,
+    tether_tension,
+    tether_tension_3d,
+)
 
 MODEL = RobotModel()
 
@@ -68,6 +73,7 @@ def test_tension_equals_newtons_law_on_the_hemi_masses() -> None:
 def test_static_spin_tension_is_the_hemi_mass_times_the_papers_expression() -> None:
     ours = reeling_tether_tension(MODEL, [0.0, 1.0, 0.0], 2.8)
     assert ours == pytest.approx(9.0 * 2.8)
+    assert ours == pytest.approx(tether_tension_3d(MODEL, [0.3, 1.0, 0.0], 2.8))
     assert ours == pytest.approx(
         hemi_mass_kg(MODEL) / MODEL.body_mass_kg * tether_tension(MODEL, 1.0, 2.8)
     )

@@ -10,13 +10,12 @@ lumped mass of the hemi, body ``m_x`` and limb tips ``m_y``, ``m_z``, sits at
     M_h (r_x'' - r_x w_perp^2) = -T,   w_perp^2 = w_y^2 + w_z^2,
     M_h = m_x + 2 m_y + 2 m_z  (the whole hemi: its limbs ride on its body)
 
-so ``T = M_h (r_x w_perp^2 - r_x'')``. The tether can only pull: it stays taut with
-at least ``T_min`` while ``r_x'' <= r_x w_perp^2 - T_min / M_h``.
-
-The paper's ``T = m_x w_y^2 r_x`` (section III.B, and ``splitter_sim.core.model.
-tether_tension``) uses the body mass alone; with the limbs mounted on the body the
-tether carries the whole hemi, three times more for the paper's masses. The
-taut condition (the sign of T) is the same either way.
+so ``T = M_h (r_x w_perp^2 - r_x'')``: the steady part is
+``splitter_sim.core.model.tether_tension_3d``, reeling adds ``-M_h r_x''``. The
+tether can only pull: it stays taut with at least ``T_min`` while
+``r_x'' <= r_x w_perp^2 - T_min / M_h``. (The paper's ``T = m_x w_y^2 r_x`` counts
+the body mass alone, a third of the load for its masses; the sign, hence the
+taut condition, is the same.)
 """
 
 from __future__ import annotations
@@ -24,12 +23,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from splitter_sim.core.model import RobotModel
+from splitter_sim.core.model import RobotModel, tether_tension_3d
 
 
 def hemi_mass_kg(model: RobotModel) -> float:
     """M_h = m_x + 2 m_y + 2 m_z [kg]: the mass the tether holds on each side."""
-    return model.body_mass_kg + 2.0 * model.limb_mass_y_kg + 2.0 * model.limb_mass_z_kg
+    return model.hemi_mass_kg
 
 
 def perpendicular_spin_squared(angular_velocity_rad_s: ArrayLike) -> float:
@@ -45,8 +44,8 @@ def reeling_tether_tension(
     radius_x_acceleration_m_s2: float = 0.0,
 ) -> float:
     """T = M_h (r_x w_perp^2 - r_x'') [N]; negative means the tether would go slack."""
-    w_perp2 = perpendicular_spin_squared(angular_velocity_rad_s)
-    return hemi_mass_kg(model) * (radius_x_m * w_perp2 - radius_x_acceleration_m_s2)
+    steady = tether_tension_3d(model, angular_velocity_rad_s, radius_x_m)
+    return steady - model.hemi_mass_kg * radius_x_acceleration_m_s2
 
 
 def max_taut_radius_acceleration(
@@ -57,4 +56,4 @@ def max_taut_radius_acceleration(
 ) -> float:
     """Largest r_x'' [m/s^2] keeping the tension at or above ``tension_min_n`` [N]."""
     w_perp2 = perpendicular_spin_squared(angular_velocity_rad_s)
-    return radius_x_m * w_perp2 - tension_min_n / hemi_mass_kg(model)
+    return radius_x_m * w_perp2 - tension_min_n / model.hemi_mass_kg
