@@ -357,7 +357,7 @@ class IkTetherAllocatorNode(Node):
             "required_tension_n": self.config.tension_margin_n,
         }
         for key, count in sorted(rejection_counts(self).items()):
-            values[f"total_rejected_{key}"] = count
+            values[f"total_warnings_{key}"] = count
         problems = []
         if a is not None:
             values.update(

@@ -9,7 +9,7 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    ``tether_acceleration_max_m_s2``) and the knee angles of the y and z limbs
    within the joint speed (800 RPM after the 10:1 gearbox) and acceleration limits
    (derated by the hip pitch / knee speed ratio so that the hip pitch, which turns
-   with the knee, obeys them too),
+   with the knee, obeys them too), each scaled by its share in :class:`AllocatorConfig`,
 3. reels the tether out only as fast as keeps it taut: ``r_x'' <= r_x w_perp^2 -
    T_min / M_h`` (:mod:`splitter_ik.core.tether`), which also bounds how hard a
    reel-in can be braked, so reel-in speeds are planned with the braking available
@@ -54,7 +54,6 @@ from splitter_sim.core.model import RobotModel, principal_inertia
 TETHER_JOINT_INDEX = 24
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
 KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
-_NS_PER_S = 1_000_000_000
 _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
 _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
 
