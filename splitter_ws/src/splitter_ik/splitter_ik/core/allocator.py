@@ -71,9 +71,9 @@ class AllocatorConfig:
     # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
     # follows the reference needs headroom. Measured with the simulator's servos in the
     # spin_stabilization set-up (setpoint steps, test_allocator_with_simulator.py):
-    # limbs at 1.0 / 0.5 / 0.25: hip-knee mismatch swings load the tether to -57 / -7 N
-    # (slack) / +34 N (taut); tether at 1.0 / 0.9: the reel overshoots a stop by
-    # 59 / 0.5 mm.
+    # limbs at 1.0 / 0.5 / 0.25: hip-knee mismatch up to 234 / 1.3 / 0.5 mrad, least
+    # tether tension -61 / -3.4 N (slack) / +38.6 N; tether at 1.0 / 0.9: the reel
+    # overshoots a stop by 59 / 0.5 mm.
     limb_acceleration_fraction: float = 0.25
     tether_acceleration_fraction: float = 0.9
 
