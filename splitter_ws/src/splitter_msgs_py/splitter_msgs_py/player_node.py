@@ -21,6 +21,7 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
 from splitter_msgs_py import names, qos
@@ -208,12 +209,13 @@ class PlayerNode(Node):
         super().destroy_node()
 
 
-def main(args: list[str] | None = None) -> None:
+def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | None = None) -> int:
+    """Play until the end (or SIGINT / SIGTERM); the body of :func:`main`. 1 on a playback error."""
     rclpy.init(args=args)
     node = None
     try:
-        node = PlayerNode()
-        while rclpy.ok() and not node.finished.is_set():
+        node = PlayerNode(parameter_overrides=parameter_overrides or [])
+        while rclpy.ok(context=node.context) and not node.finished.is_set():
             rclpy.spin_once(node, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -221,6 +223,11 @@ def main(args: list[str] | None = None) -> None:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return 1 if node is not None and node.error is not None else 0
+
+
+def main(args: list[str] | None = None) -> None:
+    run(args=args)
 
 
 if __name__ == "__main__":
