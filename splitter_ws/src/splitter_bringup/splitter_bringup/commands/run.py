@@ -1,0 +1,154 @@
+"""``splitter run SCENARIO --out DIR``: run a scenario's variants, write summary and plots.
+
+Backends: ``library`` (default; also ``--no-ros``) steps the core objects in the
+lockstep order (:mod:`splitter_bringup.core.closed_loop`); ``graph`` runs the
+node graph (:func:`splitter_bringup.graph_run.run_graph`) and reads its bag back.
+Either way the same metrics and plots are made from a ``RunSeries``.
+
+Writes ``DIR/summary.json`` (the main variant's figures beside the paper's, and
+every variant's), ``DIR/<variant>.npz`` and ``DIR/<variant>_*.png``, and prints a
+table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+from splitter_bringup.core.scenario import ScenarioError, available_scenarios, load_scenario
+from splitter_bringup.core.series import RunSeries
+
+SOLVER_CHOICES = ("sqp", "rti", "ipopt", "fatrop")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``splitter run``."""
+    parser.add_argument(
+        "scenario", help=f"scenario name ({', '.join(available_scenarios())}) or YAML path"
+    )
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument(
+        "--variant", action="append", help="variant to run (repeatable; default: all of them)"
+    )
+    parser.add_argument(
+        "--backend", choices=("library", "graph"), default="library", help="how to run it"
+    )
+    parser.add_argument(
+        "--no-ros", action="store_true", help="same as --backend library (no ROS graph)"
+    )
+    parser.add_argument(
+        "--solver", choices=SOLVER_CHOICES, default=None, help="MPC solver (library backend)"
+    )
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+
+
+def _progress_printer(label: str):
+    state = {"last": -1}
+
+    def report(fraction: float) -> None:
+        percent = int(100 * fraction)
+        if percent // 10 != state["last"] // 10 or fraction >= 1.0:
+            state["last"] = percent
+            print(f"  {label}: {percent:3d} %", file=sys.stderr, flush=True)
+
+    return report
+
+
+def _run_variant(args: argparse.Namespace, scenario_name: str, variant: str) -> RunSeries:
+    if args.backend == "graph" and not args.no_ros:
+        from splitter_bringup.graph_run import run_graph
+
+        return run_graph(scenario_name, variant, args.out)
+    from splitter_bringup.core.closed_loop import run_closed_loop
+    from splitter_mpc.core.mpc import MpcSettings
+
+    scenario = load_scenario(scenario_name, variant)
+    mpc = MpcSettings(solver=args.solver) if args.solver else None
+    return run_closed_loop(scenario, _progress_printer(variant), mpc=mpc)
+
+
+def _jsonable(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run, summarise, plot; 0 on success, 2 on a bad scenario or variant."""
+    from splitter_bringup.core.metrics import flight_summary, summary_table
+
+    try:
+        base = load_scenario(args.scenario)
+        variants = list(args.variant or base.variants)
+        for v in variants:
+            if v not in base.variants:
+                raise ScenarioError(f"variant {v!r} not in {list(base.variants)}")
+    except ScenarioError as exc:
+        print(f"splitter run: {exc}", file=sys.stderr)
+        return 2
+    if args.no_ros:
+        args.backend = "library"
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    backend = args.backend
+    print(f"{base.name}: variants {', '.join(variants)} ({backend})", file=sys.stderr)
+    runs: dict[str, RunSeries] = {}
+    summaries: dict[str, dict] = {}
+    for variant in variants:
+        started = time.monotonic()
+        scenario = load_scenario(args.scenario, variant)
+        series = _run_variant(args, args.scenario, variant)
+        wall = time.monotonic() - started
+        runs[variant] = series
+        series.save_npz(out / f"{variant}.npz")
+        metrics = flight_summary(
+            series,
+            scenario.paper,
+            scenario.controller.w_ref_rad_s,
+            scenario.controller.attitude_reference,
+        )
+        summaries[variant] = {
+            "wall_time_s": wall,
+            "controller_enabled": scenario.controller.enabled,
+            "metrics": {
+                k: {kk: _jsonable(vv) for kk, vv in m.as_dict().items()} for k, m in metrics.items()
+            },
+        }
+        print(f"  {variant}: done in {wall:.1f} s", file=sys.stderr)
+        if not args.no_plots:
+            from splitter_bringup.core.plots import plot_flight, plot_quaternion_map
+
+            plot_flight(series, out / f"{variant}_flight.png", f"{base.name}: {variant}")
+            plot_quaternion_map(
+                series, out / f"{variant}_quaternion.png", f"{base.name}: {variant}"
+            )
+    if not args.no_plots and len(runs) > 1:
+        from splitter_bringup.core.plots import plot_comparison
+
+        plot_comparison(runs, out / "comparison.png", base.name)
+    main_variant = variants[0]
+    summary = {
+        "scenario": base.name,
+        "backend": backend,
+        "main_variant": main_variant,
+        "metrics": summaries[main_variant]["metrics"],
+        "variants": summaries,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    for variant in variants:
+        metrics = flight_summary(
+            runs[variant],
+            load_scenario(args.scenario, variant).paper,
+            base.controller.w_ref_rad_s,
+            base.controller.attitude_reference,
+        )
+        print(f"\n{base.name} / {variant}")
+        print(f"  {'metric':<26}{'value':>12}  {'unit':<9}paper")
+        for name, value, unit, paper in summary_table(metrics):
+            print(f"  {name:<26}{value:>12}  {unit:<9}{paper}")
+    print(f"\nwrote {out / 'summary.json'}")
+    return 0

@@ -1,0 +1,220 @@
+"""The library closed loop: a scenario run without ROS, in the graph's lockstep order.
+
+The same core objects the nodes wrap, called in the order of the lockstep
+protocol (docs/ARCHITECTURE.md), so that this loop and the node graph agree to
+solver tolerance. For each simulator step at time ``t`` (5 ms):
+
+1. the simulator's state at ``t`` (what it publishes: imu, inertia, odom,
+   contact wrenches, joint_states);
+2. on a control tick (``t % 10 ms == 0``):
+   a. gait phase manager: ``GaitPhaseMachine.update`` with odom, the contact
+      normal forces and ``r_x`` = tether / 2; its attitude reference (first tick,
+      Landing) goes to the MPC as the latched reference topics would; its jump
+      wrench to the simulator;
+   b. MPC: ``MorphingController.on_state(t, w, q, I, phase)`` -> setpoint stamped t;
+   c. allocator: ``TetherLimbAllocator.allocate(t, setpoint, w)`` -> joint
+      commands stamped t, sent to the simulator;
+3. the simulator steps to ``t + 5 ms`` (between ticks on the last commands).
+
+Every step's state is recorded into a :class:`RunSeries`. ROS-free.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from splitter_bringup.core.graph_config import gait_parameters
+from splitter_bringup.core.scenario import Scenario
+from splitter_bringup.core.series import RunSeries
+from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
+from splitter_mpc.core.controller import ControllerConfig, MorphingController
+from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
+from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.ocp import MpcWeights
+from splitter_sim.core.model import RobotModel
+from splitter_sim.core.simulator import Simulator
+
+_LOG = logging.getLogger(__name__)
+NS_PER_S = 1_000_000_000
+CONTROL_PERIOD_NS = 10_000_000  # [ns] the control tick (docs/ARCHITECTURE.md)
+TETHER_JOINT = 24
+
+ProgressCallback = Callable[[float], None]  # called with the fraction done, in [0, 1]
+
+
+def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> ControllerConfig:
+    """The MPC configuration of a scenario: the node's parameters, as a core object."""
+    c = scenario.controller
+    weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq)
+    return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc or MpcSettings())
+
+
+def run_closed_loop(
+    scenario: Scenario,
+    progress: ProgressCallback | None = None,
+    *,
+    model: RobotModel | None = None,
+    controller: MorphingController | None = None,
+    mpc: MpcSettings | None = None,
+    fail_solves_at_s: tuple[float, ...] = (),
+    duration_s: float | None = None,
+) -> RunSeries:
+    """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
+
+    ``controller`` replaces the scenario's MPC (for benchmarks); ``mpc`` sets the
+    solver options of the default one. ``fail_solves_at_s`` injects a solver
+    failure at the re-plans at those times (tests of the failure handling).
+    ``duration_s`` shortens the run.
+    """
+    model = model or RobotModel()
+    sim = Simulator.from_scenario(scenario, model)
+    gait = GaitPhaseMachine(gait_config_from_parameters(gait_parameters(scenario)))
+    allocator = TetherLimbAllocator(model, AllocatorConfig(), scenario.initial_radii_m)
+    if controller is None:
+        controller = MorphingController(model, controller_config(scenario, mpc))
+    fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
+    duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
+    dt_ns = sim.config.dt_ns
+    n_steps = round(duration * NS_PER_S / dt_ns)
+    if CONTROL_PERIOD_NS % dt_ns != 0:
+        raise ValueError(f"sim step {dt_ns} ns does not divide the control tick")
+
+    rec: dict[str, list] = {k: [] for k in _RECORDED}
+    phases: list[str] = []
+    setpoint = np.asarray(sim.state().principal_inertia_kg_m2, dtype=float)
+    phase_name = ""
+    solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
+    started = time.monotonic()
+    report_every = max(1, n_steps // 20)
+    for step in range(n_steps + 1):
+        state = sim.state()
+        t = state.t_ns
+        solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
+        if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
+            out = gait.update(
+                t,
+                state.position_m,
+                state.velocity_m_s,
+                state.orientation_wxyz,
+                state.angular_velocity_rad_s,
+                float(state.joint_position[TETHER_JOINT]) / 2.0,
+                state.contact_force_n[:, 2],
+            )
+            phase_name = out.phase.value
+            if out.reference is not None:
+                ref = out.reference
+                controller.set_reference(ref.stamp_ns, ref.w_ref_rad_s, ref.q_ref_wxyz)
+            sim.command_jump_force(out.jump_force_n, out.pushing_hemi or "auto")
+            if t in fail_ns:
+                controller.inject_solver_failures(1)
+            setpoint = controller.on_state(
+                t,
+                state.angular_velocity_rad_s,
+                state.orientation_wxyz,
+                state.principal_inertia_kg_m2,
+                phase_name,
+            )
+            status = controller.status
+            if status.replanned:
+                solve = {
+                    "time_ms": status.solve_time_ms,
+                    "iterations": status.iterations,
+                    "ok": float(status.solve_ok),
+                    "cost": status.cost,
+                }
+            allocation = allocator.allocate(t, setpoint, state.angular_velocity_rad_s)
+            sim.command_joints(allocation.joint_position, allocation.joint_velocity)
+        _record(rec, state, setpoint, solve)
+        phases.append(phase_name)
+        if step < n_steps:
+            sim.step()
+        if progress is not None and (step % report_every == 0 or step == n_steps):
+            progress(step / max(1, n_steps))
+    _LOG.debug(
+        "closed loop of %s/%s: %.1f s wall",
+        scenario.name,
+        scenario.variant,
+        time.monotonic() - started,
+    )
+    return _series(rec, phases, scenario.gravity_m_s2)
+
+
+_RECORDED = (
+    "t",
+    "w",
+    "q",
+    "inertia",
+    "setpoint",
+    "radii",
+    "position",
+    "velocity",
+    "joints",
+    "hemi_g",
+    "energy",
+    "momentum",
+    "tension",
+    "power",
+    "solve_time_ms",
+    "solve_iterations",
+    "solve_ok",
+    "solve_cost",
+)
+
+
+def _record(rec: dict[str, list], state, setpoint, solve: dict) -> None:
+    rec["t"].append(state.t_ns / NS_PER_S)
+    rec["w"].append(state.angular_velocity_rad_s)
+    rec["q"].append(state.orientation_wxyz)
+    rec["inertia"].append(state.principal_inertia_kg_m2)
+    rec["setpoint"].append(np.asarray(setpoint, dtype=float).copy())
+    rec["radii"].append(state.radii_m)
+    rec["position"].append(state.position_m)
+    rec["velocity"].append(state.velocity_m_s)
+    rec["joints"].append(state.joint_position)
+    rec["hemi_g"].append(state.hemi_acceleration_g)
+    rec["energy"].append(state.rotational_energy_j)
+    rec["momentum"].append(state.angular_momentum_world)
+    rec["tension"].append(state.tether_tension_n)
+    rec["power"].append(state.actuator_power_w)
+    rec["solve_time_ms"].append(solve["time_ms"])
+    rec["solve_iterations"].append(solve["iterations"])
+    rec["solve_ok"].append(solve["ok"])
+    rec["solve_cost"].append(solve["cost"])
+
+
+def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSeries:
+    a = {k: np.asarray(v, dtype=float) for k, v in rec.items()}
+    return RunSeries(
+        t_s=a["t"],
+        angular_velocity_rad_s=a["w"],
+        orientation_wxyz=a["q"],
+        principal_inertia_kg_m2=a["inertia"],
+        inertia_setpoint_kg_m2=a["setpoint"],
+        radii_m=a["radii"],
+        position_m=a["position"],
+        velocity_m_s=a["velocity"],
+        joint_position=a["joints"],
+        gravity_m_s2=gravity,
+        gait_phase=phases,
+        extras={
+            "hemi_acceleration_g": a["hemi_g"],
+            "rotational_energy_j": a["energy"],
+            "angular_momentum_world": a["momentum"],
+            "tether_tension_n": a["tension"],
+            "actuator_power_w": a["power"],
+            "mpc_solve_time_ms": a["solve_time_ms"],
+            "mpc_iterations": a["solve_iterations"],
+            "mpc_solve_ok": a["solve_ok"],
+            "mpc_cost": a["solve_cost"],
+        },
+    )
+
+
+def with_variant(scenario: Scenario, **controller_changes) -> Scenario:
+    """A copy of ``scenario`` with controller fields replaced (tests, benchmarks)."""
+    return replace(scenario, controller=replace(scenario.controller, **controller_changes))

@@ -1,0 +1,200 @@
+"""Flight metrics of a run, beside the paper's numbers (section VII.A, Tables I and II).
+
+Pure functions of a :class:`RunSeries`, whichever way it was made (library loop
+or a bag of the node graph). Definitions (stated, since the paper does not):
+
+* final window: the last ``FINAL_WINDOW_S`` = 0.5 s of the run. ``residual_wx``,
+  ``residual_wz`` are the mean |w_x|, |w_z| over it; ``wy_final`` the mean w_y.
+* ``time_constant_s``: first time w_y has covered 63.2 % of its change from t = 0
+  to ``wy_final``.
+* ``settling_time_s``: last time |w_y - wy_final| exceeds ``SETTLING_BAND`` = 2 % of
+  that change; after it w_y stays in the band.
+* ``max_g``: largest specific force on a Hemi-SPLITTER body [G] (the simulator's
+  ``hemi_acceleration_g``). For a steady spin about y it is ``w_y^2 r_x / g``: the
+  paper's 0.47 G is 1.28^2 x 2.8 / 9.81.
+* energy and angular momentum at t = 0 and at the end; ``spin_alignment_final``
+  = |w_y| / |w| at the end.
+* ``wy_from_momentum``: ``|H| / Iyy`` at the end. With the angular momentum
+  conserved in flight and the final spin about y, ``w_y = |H| / Iyy`` exactly:
+  the final spin rate is set by the final inertia, not by the reference.
+
+Attitude error: the angle between the attitude and the reference ``q_ref(t) =
+q_ref(0) (x) exp(w_ref t / 2)`` (body rate, from the first attitude), q and -q
+counted as one attitude.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_bringup.core.series import RunSeries
+from splitter_mpc.core.gait import propagate_attitude
+from splitter_sim.core.model import STANDARD_GRAVITY
+
+FINAL_WINDOW_S = 0.5  # [s]
+SETTLING_BAND = 0.02  # [-] of the w_y change
+TIME_CONSTANT_FRACTION = 1.0 - math.exp(-1.0)  # 63.2 %
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One number of a run, with its unit, definition and the paper's value."""
+
+    value: float
+    unit: str
+    definition: str
+    paper: float | str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _final_mask(series: RunSeries) -> NDArray[np.bool_]:
+    t = series.t_s
+    return t >= t[-1] - FINAL_WINDOW_S
+
+
+def _rotational_energy(series: RunSeries) -> NDArray[np.float64]:
+    if "rotational_energy_j" in series.extras:
+        return np.asarray(series.extras["rotational_energy_j"], dtype=float)
+    w = series.angular_velocity_rad_s
+    return 0.5 * np.sum(series.principal_inertia_kg_m2 * w * w, axis=1)
+
+
+def _momentum_norm(series: RunSeries) -> NDArray[np.float64]:
+    if "angular_momentum_world" in series.extras:
+        return np.linalg.norm(series.extras["angular_momentum_world"], axis=1)
+    return np.linalg.norm(series.principal_inertia_kg_m2 * series.angular_velocity_rad_s, axis=1)
+
+
+def _hemi_g(series: RunSeries) -> NDArray[np.float64]:
+    if "hemi_acceleration_g" in series.extras:
+        return np.max(np.asarray(series.extras["hemi_acceleration_g"], dtype=float), axis=1)
+    # Centripetal acceleration of a hemi body at (r_x, 0, 0) (rigid-body estimate).
+    w = series.angular_velocity_rad_s
+    p = np.zeros_like(w)
+    p[:, 0] = series.radii_m[:, 0]
+    return np.linalg.norm(np.cross(w, np.cross(w, p)), axis=1) / STANDARD_GRAVITY
+
+
+def step_response(t_s: ArrayLike, y: ArrayLike, final: float) -> tuple[float, float]:
+    """(time constant, settling time) [s] of ``y`` moving from ``y[0]`` to ``final``."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(y, dtype=float)
+    change = final - y[0]
+    if abs(change) < 1e-12:
+        return 0.0, 0.0
+    progress = (y - y[0]) / change
+    reached = np.nonzero(progress >= TIME_CONSTANT_FRACTION)[0]
+    tau = float(t[reached[0]]) if reached.size else math.nan
+    outside = np.nonzero(np.abs(y - final) > SETTLING_BAND * abs(change))[0]
+    if outside.size == 0:
+        settling = 0.0
+    elif outside[-1] == len(t) - 1:
+        settling = math.nan
+    else:
+        settling = float(t[outside[-1] + 1])
+    return tau, settling
+
+
+def attitude_error_rad(
+    series: RunSeries, w_ref_rad_s: ArrayLike, propagate: bool = True
+) -> NDArray[np.float64]:
+    """Angle [rad] between the attitude and the reference started at the first attitude."""
+    q0 = series.orientation_wxyz[0]
+    w_ref = np.asarray(w_ref_rad_s, dtype=float) if propagate else np.zeros(3)
+    refs = np.array([propagate_attitude(q0, w_ref, float(t - series.t_s[0])) for t in series.t_s])
+    q = series.orientation_wxyz / np.linalg.norm(series.orientation_wxyz, axis=1, keepdims=True)
+    dot = np.clip(np.abs(np.sum(q * refs, axis=1)), 0.0, 1.0)
+    return 2.0 * np.arccos(dot)
+
+
+def flight_summary(
+    series: RunSeries,
+    paper: Mapping[str, Any] | None = None,
+    w_ref_rad_s: ArrayLike = (0.0, 1.0, 0.0),
+    attitude_reference: str = "integrate_w_ref",
+) -> dict[str, Metric]:
+    """The paper's spin-stabilisation figures (and attitude error) of a run."""
+    paper = dict(paper or {})
+    w = series.angular_velocity_rad_s
+    final = _final_mask(series)
+    wy_final = float(np.mean(w[final, 1]))
+    tau, settling = step_response(series.t_s, w[:, 1], wy_final)
+    energy = _rotational_energy(series)
+    momentum = _momentum_norm(series)
+    iyy_end = float(series.principal_inertia_kg_m2[-1, 1])
+    w_end = w[-1]
+    att = attitude_error_rad(series, w_ref_rad_s, attitude_reference == "integrate_w_ref")
+    window = f"mean over the last {FINAL_WINDOW_S:g} s"
+    energy_paper = paper.get("energy")
+    out = {
+        "residual_wx": Metric(
+            float(np.mean(np.abs(w[final, 0]))),
+            "rad/s",
+            f"|w_x|, {window}",
+            paper.get("residual_wx"),
+        ),
+        "residual_wz": Metric(
+            float(np.mean(np.abs(w[final, 2]))),
+            "rad/s",
+            f"|w_z|, {window}",
+            paper.get("residual_wz"),
+        ),
+        "wy_final": Metric(wy_final, "rad/s", f"w_y, {window}", paper.get("wy_final")),
+        "wy_from_momentum": Metric(
+            float(momentum[-1] / iyy_end),
+            "rad/s",
+            "|H| / Iyy at the end: the spin rate conservation of H allows about y",
+        ),
+        "time_constant_s": Metric(
+            tau, "s", "first time w_y covers 63.2 % of its change", paper.get("time_constant_s")
+        ),
+        "settling_time_s": Metric(
+            settling,
+            "s",
+            f"w_y within {SETTLING_BAND:.0%} of its change from then on",
+            paper.get("settling_time_s"),
+        ),
+        "max_g": Metric(
+            float(np.max(_hemi_g(series))),
+            "G",
+            "largest specific force on a hemi body",
+            paper.get("max_g"),
+        ),
+        "energy_start_j": Metric(float(energy[0]), "J", "1/2 w'Iw at t = 0", energy_paper),
+        "energy_end_j": Metric(float(energy[-1]), "J", "1/2 w'Iw at the end", energy_paper),
+        "momentum_start": Metric(float(momentum[0]), "kg m^2/s", "|H| at t = 0"),
+        "momentum_end": Metric(float(momentum[-1]), "kg m^2/s", "|H| at the end"),
+        "spin_alignment_final": Metric(
+            float(abs(w_end[1]) / max(np.linalg.norm(w_end), 1e-12)), "-", "|w_y| / |w| at the end"
+        ),
+        "attitude_error_final_deg": Metric(
+            float(np.degrees(np.mean(att[final]))),
+            "deg",
+            f"angle to the attitude reference, {window}",
+        ),
+        "radii_range_m": Metric(
+            float(np.max(np.ptp(series.radii_m, axis=0))), "m", "largest range of r_x, r_y, r_z"
+        ),
+    }
+    for key in ("finding_1", "finding_2"):
+        if key in paper:
+            out[key] = Metric(math.nan, "-", "qualitative finding of the paper", paper[key])
+    return out
+
+
+def summary_table(metrics: Mapping[str, Metric]) -> list[tuple[str, str, str, str]]:
+    """Rows (name, value, unit, paper) for printing."""
+    rows = []
+    for name, m in metrics.items():
+        value = "" if math.isnan(m.value) else f"{m.value:.4g}"
+        paper = "" if m.paper is None else str(m.paper)
+        rows.append((name, value, m.unit, paper))
+    return rows

@@ -1,0 +1,140 @@
+"""The paper's flight figures from a :class:`RunSeries` (PNG, matplotlib Agg).
+
+Plotting only: every number shown is computed by :mod:`.metrics` or read from
+the series. Figures (paper Fig. 7 and 10-12): angular velocity, radii and
+control effort (inertia and its setpoint), Euler angles, and the quaternion map
+(the components of the attitude quaternion over time).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from numpy.typing import NDArray
+
+from splitter_bringup.core.series import RunSeries
+
+AXES = ("x", "y", "z")
+
+
+def euler_xyz_deg(q_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Roll, pitch, yaw [deg] (extrinsic x-y-z, the scenario files' convention), unwrapped."""
+    from scipy.spatial.transform import Rotation
+
+    xyzw = np.roll(np.asarray(q_wxyz, dtype=float), -1, axis=1)
+    angles = Rotation.from_quat(xyzw).as_euler("xyz")
+    return np.degrees(np.unwrap(angles, axis=0))
+
+
+def _canonical_sign(q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Quaternions with sign flips removed (q and -q are one attitude): a continuous path."""
+    out = np.array(q, dtype=float)
+    for i in range(1, len(out)):
+        if np.dot(out[i], out[i - 1]) < 0.0:
+            out[i] = -out[i]
+    return out
+
+
+def plot_flight(series: RunSeries, path: Path, title: str = "") -> Path:
+    """Angular velocity, radii, inertia vs setpoint and Euler angles, one PNG."""
+    t = series.t_s
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True)
+    ax = axes[0, 0]
+    for i, name in enumerate(AXES):
+        ax.plot(t, series.angular_velocity_rad_s[:, i], label=f"$\\omega_{name}$")
+    ax.set_ylabel("angular velocity [rad/s]")
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+    ax = axes[0, 1]
+    for i, name in enumerate(AXES):
+        ax.plot(t, series.radii_m[:, i], label=f"$r_{name}$")
+    ax.set_ylabel("radius [m]")
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+    ax = axes[1, 0]
+    euler = euler_xyz_deg(series.orientation_wxyz)
+    for i, name in enumerate(("roll", "pitch", "yaw")):
+        ax.plot(t, euler[:, i], label=name)
+    ax.set_ylabel("Euler angles xyz [deg]")
+    ax.set_xlabel("t [s]")
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+    ax = axes[1, 1]
+    nominal = series.principal_inertia_kg_m2[0]
+    for i, name in enumerate(("xx", "yy", "zz")):
+        (line,) = ax.plot(
+            t, series.principal_inertia_kg_m2[:, i] / nominal[i], label=f"$I_{{{name}}}$"
+        )
+        ax.plot(
+            t,
+            series.inertia_setpoint_kg_m2[:, i] / nominal[i],
+            "--",
+            color=line.get_color(),
+            alpha=0.7,
+            label=f"setpoint $I_{{{name}}}$",
+        )
+    ax.set_ylabel("inertia / initial [-]")
+    ax.set_xlabel("t [s]")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_quaternion_map(series: RunSeries, path: Path, title: str = "") -> Path:
+    """The quaternion components over time, and the path of the body y axis in the world."""
+    q = _canonical_sign(series.orientation_wxyz)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    ax = axes[0]
+    for i, name in enumerate(("w", "x", "y", "z")):
+        ax.plot(series.t_s, q[:, i], label=f"$q_{name}$")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("quaternion (world <- base)")
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+    ax = axes[1]
+    w, x, y, z = q.T
+    # body y axis in the world frame: second column of the rotation matrix
+    y_axis = np.stack([2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)], axis=1)
+    sc = ax.scatter(y_axis[:, 0], y_axis[:, 2], c=series.t_s, s=3, cmap="viridis")
+    ax.set_xlabel("body y axis, world x")
+    ax.set_ylabel("body y axis, world z")
+    ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    fig.colorbar(sc, ax=ax, label="t [s]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_comparison(runs: Mapping[str, RunSeries], path: Path, title: str = "") -> Path:
+    """|w_x|, w_y, |w_z| of several variants on one figure (e.g. MPC vs open loop)."""
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4), sharex=True)
+    for label, series in runs.items():
+        w = series.angular_velocity_rad_s
+        for i, ax in enumerate(axes):
+            ax.plot(series.t_s, w[:, i], label=label)
+    for i, ax in enumerate(axes):
+        ax.set_title(f"$\\omega_{AXES[i]}$ [rad/s]")
+        ax.set_xlabel("t [s]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

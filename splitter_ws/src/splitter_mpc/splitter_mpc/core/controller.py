@@ -1,0 +1,280 @@
+"""The MPC scheduler shared by the ``inertial_morphing_mpc`` node and the library loop.
+
+:meth:`MorphingController.on_state` is called once per control tick (100 Hz) with
+the measured state stamped on that tick; it re-plans on the re-plan grid
+(10 Hz, paper Table I) or when it has no plan, and returns the inertia setpoint
+for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
+
+* Active in every gait phase but LANDED (docs/ARCHITECTURE.md, "Gait phases and
+  the MPC"), once an attitude reference has been set. Inactive, or disabled
+  (open loop), it holds the nominal inertia: the configured one, else the first
+  inertia it measured.
+* A failed solve (solver error, non-finite or infeasible result, injected
+  failure) keeps the previous plan: its later steps are played back on the
+  following ticks, the failure is counted and reported, and the next re-plan
+  tries again. Without any plan it holds the measured inertia.
+* It never returns a non-finite setpoint.
+
+ROS-free and deterministic (the solvers are deterministic; a wall-time cap that
+is hit is reported).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
+from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
+from splitter_mpc.core.ocp import MpcWeights
+from splitter_sim.core.model import RobotModel
+
+_LOG = logging.getLogger(__name__)
+INACTIVE_PHASES = (GaitPhase.LANDED.value,)
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Scheduler settings (paper Table I: re-plan every 0.1 s, setpoints every 0.01 s)."""
+
+    enabled: bool = True
+    weights: MpcWeights = field(default_factory=MpcWeights)
+    mpc: MpcSettings = field(default_factory=MpcSettings)
+    replan_period_s: float = 0.1  # [s]
+    control_period_s: float = 0.01  # [s]
+    nominal_inertia_kg_m2: tuple[float, float, float] | None = None  # held when inactive
+
+    def __post_init__(self) -> None:
+        for name in ("replan_period_s", "control_period_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        replan, tick = self.replan_period_ns, self.control_period_ns
+        if replan % tick != 0 or tick % self.mpc.dt_ns != 0:
+            raise ValueError(
+                "replan_period_s must be a multiple of control_period_s, itself a multiple of "
+                f"the prediction step (got {replan}, {tick}, {self.mpc.dt_ns} ns)"
+            )
+        if self.nominal_inertia_kg_m2 is not None:
+            nominal = np.asarray(self.nominal_inertia_kg_m2, dtype=float)
+            if nominal.shape != (3,) or not np.all(np.isfinite(nominal) & (nominal > 0.0)):
+                raise ValueError(f"nominal_inertia_kg_m2 must be 3 positive numbers, got {nominal}")
+
+    @property
+    def replan_period_ns(self) -> int:
+        return round(self.replan_period_s * NS_PER_S)
+
+    @property
+    def control_period_ns(self) -> int:
+        return round(self.control_period_s * NS_PER_S)
+
+
+@dataclass(frozen=True)
+class ControllerStatus:
+    """What the last tick did (the node publishes it on /diagnostics)."""
+
+    t_ns: int = 0
+    active: bool = False
+    phase: str = ""
+    replanned: bool = False  # this tick solved
+    solver: str = ""
+    solve_status: str = "none"
+    solve_ok: bool = False  # the last solve's plan was accepted
+    converged: bool = False
+    iterations: int = 0
+    solve_time_ms: float = 0.0  # [ms] wall, last solve
+    cost: float = math.nan
+    infeasibility: float = math.nan
+    plan_age_s: float = math.nan  # [s] since the executed plan was made
+    solves: int = 0
+    failures: int = 0
+    consecutive_failures: int = 0
+    setpoint_kg_m2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+
+
+def _finite_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: expected {size} finite numbers, got {value!r}")
+    return arr
+
+
+class MorphingController:
+    """Re-plans on the re-plan grid, plays the plan back every control tick."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        config: ControllerConfig | None = None,
+        mpc: InertialMorphingMpc | None = None,
+    ) -> None:
+        self.model = model
+        self.config = config or ControllerConfig()
+        self.mpc = mpc or InertialMorphingMpc(model, self.config.mpc)
+        self.weights = self.config.weights
+        self._reference: AttitudeReference | None = None
+        self._plan: MpcPlan | None = None
+        self._nominal: NDArray[np.float64] | None = (
+            None
+            if self.config.nominal_inertia_kg_m2 is None
+            else np.asarray(self.config.nominal_inertia_kg_m2, dtype=float)
+        )
+        self._last_setpoint: NDArray[np.float64] | None = None
+        self._failures_to_inject = 0
+        self._status = ControllerStatus(solver=self.mpc.settings.solver)
+        self.last_plan_result = None
+
+    # --- inputs --------------------------------------------------------------------------
+    @property
+    def reference(self) -> AttitudeReference | None:
+        return self._reference
+
+    def set_reference(self, stamp_ns: int, w_ref_rad_s: ArrayLike, q_ref_wxyz: ArrayLike) -> None:
+        """Angular velocity reference and the attitude reference at ``stamp_ns``.
+
+        The attitude reference is propagated with ``w_ref`` (body frame) from its
+        stamp, as the graph's ``/splitter/attitude_reference_pose`` defines it.
+        """
+        w_ref = _finite_vector(w_ref_rad_s, 3, "w_ref_rad_s")
+        q = _finite_vector(q_ref_wxyz, 4, "q_ref_wxyz")
+        norm = float(np.linalg.norm(q))
+        if norm < 0.5:
+            raise ValueError(f"q_ref_wxyz: not a quaternion (|q| = {norm})")
+        self._reference = AttitudeReference(
+            stamp_ns=int(stamp_ns), w_ref_rad_s=w_ref, q_ref_wxyz=q / norm, propagate=True
+        )
+
+    def set_weights(self, weights: MpcWeights) -> None:
+        """Weights for the following solves (the built problem is reused)."""
+        self.weights = weights
+
+    def inject_solver_failures(self, count: int = 1) -> None:
+        """Treat the next ``count`` solves as failed (tests of the failure handling)."""
+        self._failures_to_inject += int(count)
+
+    @property
+    def status(self) -> ControllerStatus:
+        return self._status
+
+    @property
+    def plan(self) -> MpcPlan | None:
+        """The plan being executed."""
+        return self._plan
+
+    # --- the tick ------------------------------------------------------------------------
+    def attitude_references(self, t_ns: int) -> NDArray[np.float64]:
+        """(N+1, 4) attitude reference along the horizon from ``t_ns``."""
+        ref = self._reference
+        n, dt = self.mpc.horizon, self.mpc.settings.dt_s
+        start = propagate_attitude(ref.q_ref_wxyz, ref.w_ref_rad_s, (t_ns - ref.stamp_ns) / 1e9)
+        return np.array([propagate_attitude(start, ref.w_ref_rad_s, k * dt) for k in range(n + 1)])
+
+    def on_state(
+        self,
+        t_ns: int,
+        angular_velocity_rad_s: ArrayLike,
+        orientation_wxyz: ArrayLike,
+        inertia_kg_m2: ArrayLike,
+        phase: str | None = None,
+    ) -> NDArray[np.float64]:
+        """Inertia setpoint [kg m^2] for tick ``t_ns`` from the state measured at ``t_ns``.
+
+        ``phase`` is the gait phase name (None: unknown, treated as active).
+        Raises ``ValueError`` for non-finite or malformed inputs (state unchanged).
+        """
+        t_ns = int(t_ns)
+        w = _finite_vector(angular_velocity_rad_s, 3, "angular_velocity_rad_s")
+        q = _finite_vector(orientation_wxyz, 4, "orientation_wxyz")
+        inertia = _finite_vector(inertia_kg_m2, 3, "inertia_kg_m2")
+        if np.linalg.norm(q) < 0.5:
+            raise ValueError(f"orientation_wxyz: not a quaternion, got {q.tolist()}")
+        if np.any(inertia <= 0.0):
+            raise ValueError(f"inertia_kg_m2 must be > 0, got {inertia.tolist()}")
+        q = q / np.linalg.norm(q)
+        if self._nominal is None:
+            self._nominal = inertia.copy()
+        active = (
+            self.config.enabled
+            and self._reference is not None
+            and (phase is None or phase not in INACTIVE_PHASES)
+        )
+        status = {
+            "t_ns": t_ns,
+            "active": active,
+            "phase": phase or "",
+            "replanned": False,
+        }
+        if not active:
+            if self._plan is not None:
+                self.mpc.reset()
+            self._plan = None
+            setpoint = self._nominal.copy()
+        else:
+            if self._plan is None or t_ns % self.config.replan_period_ns == 0:
+                status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))
+            setpoint = inertia.copy() if self._plan is None else self._plan.setpoint_at(t_ns)
+        if not np.all(np.isfinite(setpoint)):
+            _LOG.error("non-finite setpoint %s at t = %d ns: holding", setpoint, t_ns)
+            setpoint = self._last_setpoint if self._last_setpoint is not None else inertia.copy()
+        self._last_setpoint = setpoint.copy()
+        plan_age = math.nan if self._plan is None else (t_ns - self._plan.t_ns) / NS_PER_S
+        self._status = ControllerStatus(
+            **{
+                **self._status.__dict__,
+                **status,
+                "plan_age_s": plan_age,
+                "setpoint_kg_m2": tuple(float(v) for v in setpoint),
+            }
+        )
+        return setpoint
+
+    def _replan(self, t_ns: int, state: NDArray[np.float64]) -> dict:
+        previous = self._status
+        try:
+            plan = self.mpc.solve(
+                t_ns,
+                state,
+                self._reference.w_ref_rad_s,
+                self.attitude_references(t_ns),
+                self.weights,
+            )
+            result = plan.result
+            status, ok = result.status, result.usable
+            if self._failures_to_inject > 0:
+                self._failures_to_inject -= 1
+                status, ok = "injected_failure", False
+            fields = {
+                "solve_status": status,
+                "converged": result.converged and ok,
+                "iterations": result.iterations,
+                "solve_time_ms": result.solve_time_s * 1e3,
+                "cost": result.cost,
+                "infeasibility": result.infeasibility,
+            }
+        except (RuntimeError, ValueError) as exc:  # a solver exception is a failed solve
+            _LOG.warning("MPC solve failed at t = %d ns: %s", t_ns, exc)
+            plan, ok = None, False
+            fields = {"solve_status": f"error: {exc}"[:120], "converged": False}
+        if ok:
+            self._plan = plan
+            consecutive = 0
+        else:
+            if previous.consecutive_failures == 0:
+                _LOG.warning(
+                    "MPC solve at t = %.3f s not usable (%s): executing the previous plan",
+                    t_ns / NS_PER_S,
+                    fields["solve_status"],
+                )
+            consecutive = previous.consecutive_failures + 1
+        return {
+            **fields,
+            "replanned": True,
+            "solve_ok": ok,
+            "solves": previous.solves + 1,
+            "failures": previous.failures + (0 if ok else 1),
+            "consecutive_failures": consecutive,
+        }

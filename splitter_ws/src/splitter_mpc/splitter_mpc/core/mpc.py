@@ -1,0 +1,196 @@
+"""The inertial-morphing MPC: the OCP of :mod:`.ocp` built once, solved warm.
+
+:class:`InertialMorphingMpc` owns one back-end (:mod:`.solvers`), built once with
+every changing number a parameter (references, weights) or a bound (measured
+state, radius-rate limits), and the primal-dual solution of the last solve,
+which it shifts by the elapsed number of prediction steps to warm-start the
+next one (the tail is rolled out with zero control). ROS-free.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_mpc.core.limits import MorphingLimits, morphing_limits
+from splitter_mpc.core.ocp import (
+    NG_PATH,
+    NU,
+    NX,
+    MpcWeights,
+    build_ocp,
+    dynamics_function,
+    parameter_vector,
+)
+from splitter_mpc.core.solvers import (
+    SOLVERS,
+    ProblemInstance,
+    SolverOptions,
+    SolverResult,
+    make_backend,
+)
+from splitter_sim.core.model import RobotModel
+
+_LOG = logging.getLogger(__name__)
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class MpcSettings:
+    """Horizon, solver and hardware margins (paper Table I: N = 50, dt = 0.01 s)."""
+
+    horizon: int = 50
+    dt_s: float = 0.01  # [s] prediction step
+    solver: str = "fatrop"
+    options: SolverOptions = field(default_factory=SolverOptions)
+    tension_min_n: float = 1.0  # [N] taut-tether margin (soft)
+    radius_rate_scale: float = 1.0  # share of the actuator radius speeds the plan may use
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.horizon, int) and 2 <= self.horizon <= 1000):
+            raise ValueError(f"horizon must be an int in [2, 1000], got {self.horizon!r}")
+        if not (math.isfinite(self.dt_s) and 0.0 < self.dt_s <= 1.0):
+            raise ValueError(f"dt_s must be in (0, 1] s, got {self.dt_s!r}")
+        if round(self.dt_s * NS_PER_S) % 1_000_000 != 0:
+            raise ValueError(f"dt_s must be a whole number of milliseconds, got {self.dt_s!r}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+
+    @property
+    def dt_ns(self) -> int:
+        return round(self.dt_s * NS_PER_S)
+
+
+@dataclass(frozen=True)
+class MpcPlan:
+    """A solved plan: predicted states from ``t_ns`` on the ``dt_ns`` grid."""
+
+    t_ns: int  # [ns] time of x_0
+    dt_ns: int  # [ns]
+    angular_velocity: NDArray[np.float64]  # (N+1, 3) predicted [rad/s]
+    orientation: NDArray[np.float64]  # (N+1, 4) predicted
+    inertia: NDArray[np.float64]  # (N+1, 3) planned principal moments [kg m^2]
+    radii: NDArray[np.float64]  # (N+1, 3) planned radii [m]
+    result: SolverResult
+
+    def setpoint_at(self, t_ns: int) -> NDArray[np.float64]:
+        """Inertia to command at ``t_ns``: the plan's value at the end of that step.
+
+        The control dI_j acts over [t_j, t_j+1); the actuators are commanded the
+        inertia they should reach by t_j+1. Past the horizon the last value holds.
+        """
+        j = max(0, (int(t_ns) - self.t_ns) // self.dt_ns)
+        return self.inertia[min(j + 1, len(self.inertia) - 1)].copy()
+
+
+class InertialMorphingMpc:
+    """The OCP of :mod:`.ocp` with one back-end and a shifted warm start."""
+
+    def __init__(self, model: RobotModel, settings: MpcSettings | None = None) -> None:
+        self.model = model
+        self.settings = settings or MpcSettings()
+        s = self.settings
+        self.limits: MorphingLimits = morphing_limits(
+            model, s.dt_s, s.tension_min_n, s.radius_rate_scale
+        )
+        self.ocp = build_ocp(s.horizon, s.dt_s, self.limits, gap_next_minus_f=s.solver == "fatrop")
+        self.backend = make_backend(s.solver, self.ocp, s.options)
+        self._dynamics = dynamics_function(s.dt_s, self.ocp.inertia_map).expand()
+        self._last: tuple[int, SolverResult] | None = None
+
+    @property
+    def horizon(self) -> int:
+        return self.settings.horizon
+
+    def reset(self) -> None:
+        """Forget the warm start (the next solve starts cold)."""
+        self._last = None
+
+    def rollout(self, x0: ArrayLike, controls: ArrayLike) -> NDArray[np.float64]:
+        """States (len(controls)+1, 10) of the MPC model from ``x0``."""
+        xs = [np.asarray(x0, dtype=float)]
+        for u in np.asarray(controls, dtype=float).reshape(-1, NU):
+            xs.append(np.asarray(self._dynamics(xs[-1], u), dtype=float).ravel())
+        return np.array(xs)
+
+    def _warm_start(self, t_ns: int, x0: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        n = self.horizon
+        ng = NX + NG_PATH
+        shift = None
+        if self._last is not None:
+            last_t, last = self._last
+            elapsed = t_ns - last_t
+            if elapsed >= 0 and elapsed % self.settings.dt_ns == 0:
+                shift = elapsed // self.settings.dt_ns
+        if shift is None or shift >= n:
+            xs = self.rollout(x0, np.zeros((n, NU)))
+            z = self.ocp.join(xs, np.zeros((n, NU)))
+            return z, np.zeros(self.ocp.n_g), np.zeros(self.ocp.n_z)
+        xs, us = self.ocp.split(last.z)
+        us = np.vstack([us[shift:], np.zeros((shift, NU))])
+        xs = np.vstack([xs[shift:], np.zeros((shift, NX))])
+        xs[0] = x0
+        if shift > 0:  # roll the tail out from the last kept state
+            xs[n - shift :] = self.rollout(xs[n - shift], us[n - shift :])
+        lam_g = last.lam_g.reshape(n, ng)
+        lam_g = np.vstack([lam_g[shift:], np.repeat(lam_g[-1:], shift, axis=0)]).ravel()
+        lam_z = np.zeros(self.ocp.n_z)
+        return self.ocp.join(xs, us), lam_g, lam_z
+
+    def solve(
+        self,
+        t_ns: int,
+        state: ArrayLike,
+        w_ref_rad_s: ArrayLike,
+        q_ref_wxyz: ArrayLike,
+        weights: MpcWeights,
+        *,
+        nominal_inertia_kg_m2: ArrayLike | None = None,
+    ) -> MpcPlan:
+        """Plan from the measured ``state`` = (w (3), q (4), principal moments (3)) at ``t_ns``.
+
+        ``q_ref_wxyz`` is the attitude reference at each of the N+1 prediction
+        times; ``nominal_inertia_kg_m2`` (default: the measured one) is the I_nom of
+        the weights' momentum tracking and nominal-configuration terms. The plan is
+        returned whatever the solver's status; check ``plan.result.usable`` before
+        executing it. The warm start is updated
+        only by usable solutions.
+        """
+        measured = np.asarray(state, dtype=float).reshape(NX)
+        x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
+        z0, lam_g0, lam_z0 = self._warm_start(int(t_ns), x0)
+        lbz, ubz = self.ocp.variable_bounds(x0)
+        lbg, ubg = self.ocp.constraint_bounds(x0)
+        data = ProblemInstance(
+            z0=z0,
+            lam_g0=lam_g0,
+            lam_z0=lam_z0,
+            p=parameter_vector(
+                self.ocp.layout,
+                w_ref_rad_s,
+                q_ref_wxyz,
+                weights,
+                measured[7:10] if nominal_inertia_kg_m2 is None else nominal_inertia_kg_m2,
+            ),
+            lbz=lbz,
+            ubz=ubz,
+            lbg=lbg,
+            ubg=ubg,
+        )
+        result = self.backend.solve(data)
+        xs, _ = self.ocp.split(result.z)
+        if result.usable:
+            self._last = (int(t_ns), result)
+        return MpcPlan(
+            t_ns=int(t_ns),
+            dt_ns=self.settings.dt_ns,
+            angular_velocity=xs[:, 0:3],
+            orientation=xs[:, 3:7],
+            inertia=self.ocp.inertia_of(xs),
+            radii=np.sqrt(np.maximum(xs[:, 7:10], 0.0)),
+            result=result,
+        )

@@ -1,0 +1,403 @@
+"""The inertial-morphing optimal control problem (paper section VI), built once, symbolically.
+
+The paper's state is ``[w (3), q (4, wxyz), Ixx, Iyy, Izz]`` with control ``dI``.
+The principal moments are linear in the squared radii (eq. 2): ``I = M s``,
+``s = (r_x^2, r_y^2, r_z^2)``. This OCP carries the inertia part of the state in
+those coordinates, ``x = [w, q, s]``, ``u = [ds, sigma]`` with ``dI = M ds``: a
+linear, invertible change of variables, so the optimum is the paper's, while
+every hardware limit becomes a simple bound (see :mod:`.limits`):
+
+* radius bounds: ``r_min^2 <= s_k <= r_max^2`` (exactly the reachable set; the
+  paper's ``0 < I <= I_max`` follows from it);
+* radius rates: ``|ds_k| <= 2 v dt rhat_k`` with ``rhat_k = max(r_min, r_0 - v k dt)``
+  the smallest radius reachable by stage k: ``|r_{k+1} - r_k| = |ds| / (r_k + r_{k+1})``
+  and both radii are ``>= rhat_k``, so ``|dr| <= v dt`` (exact when the radius
+  shrinks at full speed, conservative otherwise). The paper's box
+  ``|dI| <= dI_max`` is implied (``dI_max`` is derived from the same speeds at the
+  largest radii) and therefore not imposed twice: a duplicate bound makes the
+  optimum degenerate for interior-point solvers;
+* tether tension ``(w_y^2 + w_z^2) + sigma >= T_min / (m_x rhat_x,k)`` for k >= 1,
+  i.e. ``T = m_x r_x (w_y^2 + w_z^2) >= T_min`` (the paper's ``m_x w_y^2 r_x`` with
+  the z spin of :func:`splitter_sim.core.model.tether_tension_3d`), soft with the
+  slack ``sigma >= 0`` under an exact L1 penalty (zero whenever it can be met).
+
+Discrete dynamics (paper eq. 13-16) with the *physically correct* gyroscopic
+sign. The paper writes ``I_{k+1} w_{k+1} = I_k w_k + dt (w_k x I_k w_k)``; Euler's
+equation ``d/dt (I w) + w x (I w) = 0`` gives a minus sign (DESIGN.md section 3),
+and only the minus sign conserves the world-frame angular momentum::
+
+    I_k = M s_k,  I_{k+1} = M (s_k + ds_k) = I_k + dI_k
+    I_{k+1} w_{k+1} = I_k w_k - dt * w_k x (I_k w_k)
+    q_{k+1} = normalize(q_k + dt/2 * q_k (x) [0, w_k])
+
+Cost (paper eq. 17-21) ``J_w + J_q + J_c + J_t`` with diagonal weights, J_c on
+``dI = M ds`` exactly as the paper weighs it. The quaternion term uses
+``1/2 (1 - Re(e)^2)`` instead of the paper's ``1 - Re(e)`` (``e = q_ref^* (x) q``,
+``Re(e) = q_ref . q``): both are ``theta^2 / 8`` to second order at zero error, but
+this one is invariant under ``q -> -q`` (q and -q are the same attitude;
+``1 - Re(e)`` drives a sign-flipped measurement half a turn the wrong way),
+smooth everywhere (``1 - |Re(e)|`` has a kink at 180 deg) and, for unit
+quaternions, a sum of squares ``1/2 |(E - q_ref q_ref^T) q|^2``.
+
+Decision vector ordered stage by stage ``[x_0, u_0, x_1, u_1, ..., x_N]`` and
+constraints ``[gap_0, path_0, gap_1, path_1, ...]``: the structure fatrop and
+hpipm exploit. ``x_0`` is fixed by equal bounds (state feedback).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_mpc.core.limits import MorphingLimits
+
+NX = 10  # [w(3), q(4), s(3)] with s the squared radii
+NU = 4  # [ds(3), tension slack]
+NG_PATH = 1  # tension
+W = slice(0, 3)
+Q = slice(3, 7)
+RADII_SQ = slice(7, 10)
+N_WEIGHTS = 17  # q_w(3), r(3), q_t(3), q_q, q_tq, slack penalty, q_i(3), momentum blend, spare
+TRACKING_MODES = ("angular_velocity", "angular_momentum")
+_SLACK_QUADRATIC = 1e-4  # [s^4/rad^4] keeps the slack's Hessian regular
+
+
+def quat_multiply(p: ca.SX, q: ca.SX) -> ca.SX:
+    """Hamilton product of scalar-first quaternions (symbolic)."""
+    pw, px, py, pz = p[0], p[1], p[2], p[3]
+    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
+    return ca.vertcat(
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    )
+
+
+def discrete_dynamics(x: ca.SX, u: ca.SX, dt_s: float, inertia_map: ArrayLike) -> ca.SX:
+    """x_{k+1} = F(x_k, u_k), explicit Euler in angular momentum (module docstring).
+
+    ``inertia_map`` is M with ``I = M s``.
+    """
+    m = ca.DM(np.asarray(inertia_map, dtype=float))
+    w, q, s_sq = x[W], x[Q], x[RADII_SQ]
+    inertia = ca.mtimes(m, s_sq)
+    inertia_next = ca.mtimes(m, s_sq + u[0:3])
+    momentum = inertia * w
+    # Correct sign (the paper's eq. 13-14 print +): d/dt(I w) = -w x (I w).
+    momentum_next = momentum - dt_s * ca.cross(w, momentum)
+    w_next = momentum_next / inertia_next
+    q_next = q + 0.5 * dt_s * quat_multiply(q, ca.vertcat(0, w))
+    return ca.vertcat(w_next, q_next / ca.norm_2(q_next), s_sq + u[0:3])
+
+
+def dynamics_function(dt_s: float, inertia_map: ArrayLike) -> ca.Function:
+    """F(x, u) as a CasADi function (SX)."""
+    x = ca.SX.sym("x", NX)
+    u = ca.SX.sym("u", NU)
+    return ca.Function(
+        "F", [x, u], [discrete_dynamics(x, u, dt_s, inertia_map)], ["x", "u"], ["x_next"]
+    )
+
+
+@dataclass(frozen=True)
+class ParameterLayout:
+    """Where things sit in the parameter vector ``p``."""
+
+    horizon: int
+
+    @property
+    def w_ref(self) -> slice:
+        return slice(0, 3)
+
+    @property
+    def q_ref(self) -> slice:
+        return slice(3, 3 + 4 * (self.horizon + 1))
+
+    @property
+    def weights(self) -> slice:
+        start = 3 + 4 * (self.horizon + 1)
+        return slice(start, start + N_WEIGHTS)
+
+    @property
+    def nominal_inertia(self) -> slice:
+        return slice(self.weights.stop, self.weights.stop + 3)
+
+    @property
+    def size(self) -> int:
+        return self.nominal_inertia.stop
+
+
+@dataclass(frozen=True)
+class MpcWeights:
+    """The paper's diagonal weights (Tables I and II) and this project's additions.
+
+    Additions (zero / paper form by default):
+
+    * ``tracking``: ``"angular_velocity"`` is the paper's J_w on the body rate w.
+      ``"angular_momentum"`` evaluates J_w and J_t on ``w~ = I w / I_nom`` (the body
+      angular momentum over the nominal inertia): identical at ``I = I_nom``, but
+      the MPC can no longer lower the cost by inflating the inertia (``w = H / I``)
+      instead of turning the angular momentum into the reference axis;
+    * ``q_i``: weight of ``((I - I_nom) / I_nom)^2`` per stage, which brings the
+      limbs and the tether back to the nominal configuration;
+    * ``tension_slack``: L1 penalty of a tether-tension shortfall [s^2/rad^2 per
+      stage]: a 0.1 rad^2/s^2 shortfall costs as much as a 0.1 rad/s rate error
+      at Q_w = 100.
+    """
+
+    q_w: tuple[float, float, float] = (100.0, 100.0, 100.0)
+    r: tuple[float, float, float] = (0.01, 1.0, 1.0)
+    q_t: tuple[float, float, float] = (100.0, 10.0, 100.0)
+    q_q: float = 0.0
+    q_tq: float = 0.0
+    tension_slack: float = 100.0
+    q_i: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tracking: str = "angular_velocity"
+
+    def __post_init__(self) -> None:
+        if len(self.q_w) != 3 or len(self.r) != 3 or len(self.q_t) != 3 or len(self.q_i) != 3:
+            raise ValueError("MpcWeights: q_w, r, q_t and q_i need 3 entries each")
+        values = [*self.q_w, *self.r, *self.q_t, *self.q_i, self.q_q, self.q_tq, self.tension_slack]
+        if not all(np.isfinite(v) and v >= 0.0 for v in values):
+            raise ValueError(f"MpcWeights must be finite and >= 0, got {values}")
+        if min(self.r) <= 0.0:
+            raise ValueError("MpcWeights.r must be > 0 (the control Hessian must be regular)")
+        if self.tracking not in TRACKING_MODES:
+            raise ValueError(f"MpcWeights.tracking must be one of {TRACKING_MODES}")
+
+    def residual_scales(self) -> NDArray[np.float64]:
+        """The weights as OCP parameters: least-squares residual scales.
+
+        ``e' Q e = 1/2 |sqrt(2 Q) e|^2``; the quaternion term ``Q_q/2 |P q|^2`` scales by
+        ``sqrt(Q_q)``. Square roots are taken here, numerically, so the symbolic
+        problem has no ``sqrt(p)`` whose derivative is infinite at a zero weight.
+        """
+        return np.array(
+            [
+                *np.sqrt(2.0 * np.asarray(self.q_w, dtype=float)),
+                *np.sqrt(2.0 * np.asarray(self.r, dtype=float)),
+                *np.sqrt(2.0 * np.asarray(self.q_t, dtype=float)),
+                np.sqrt(self.q_q),
+                np.sqrt(self.q_tq),
+                self.tension_slack,
+                *np.sqrt(2.0 * np.asarray(self.q_i, dtype=float)),
+                1.0 if self.tracking == "angular_momentum" else 0.0,
+                0.0,
+            ],
+            dtype=float,
+        )
+
+
+@dataclass
+class MorphingOcp:
+    """Symbolic OCP: decision vector, parameters, residuals, constraints and bounds."""
+
+    horizon: int
+    dt_s: float
+    limits: MorphingLimits
+    z: ca.SX  # decision vector
+    p: ca.SX  # parameters
+    residual: ca.SX  # r(z, p): objective = 1/2 |r|^2 + linear_cost
+    linear_cost: ca.SX
+    objective: ca.SX
+    g: ca.SX  # constraints, stage-wise
+    layout: ParameterLayout
+    nx: list[int]
+    nu: list[int]
+    ng: list[int]
+    equality: list[bool]
+    gap_next_minus_f: bool
+
+    @property
+    def n_z(self) -> int:
+        return int(self.z.numel())
+
+    @property
+    def n_g(self) -> int:
+        return int(self.g.numel())
+
+    def x_index(self, k: int) -> slice:
+        """Slice of x_k in z."""
+        start = k * (NX + NU)
+        return slice(start, start + NX)
+
+    def u_index(self, k: int) -> slice:
+        """Slice of u_k in z (k < N)."""
+        start = k * (NX + NU) + NX
+        return slice(start, start + NU)
+
+    def split(self, z: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """States (N+1, NX) and controls (N, NU) of a decision vector."""
+        z = np.asarray(z, dtype=float).ravel()
+        n = self.horizon
+        xs = np.empty((n + 1, NX))
+        us = z[: n * (NX + NU)].reshape(n, NX + NU)
+        xs[:n] = us[:, :NX]
+        xs[n] = z[n * (NX + NU) :]
+        return xs, us[:, NX:].copy()
+
+    def join(self, xs: ArrayLike, us: ArrayLike) -> NDArray[np.float64]:
+        """Inverse of :meth:`split`."""
+        xs = np.asarray(xs, dtype=float)
+        us = np.asarray(us, dtype=float)
+        n = self.horizon
+        return np.concatenate([np.hstack([xs[:n], us]).ravel(), xs[n]])
+
+    @property
+    def inertia_map(self) -> NDArray[np.float64]:
+        """M with ``I = M s`` (inverse of ``limits.radius_squared_matrix``)."""
+        return np.linalg.inv(self.limits.radius_squared_matrix)
+
+    def state_from_measurement(
+        self, angular_velocity: ArrayLike, orientation_wxyz: ArrayLike, inertia: ArrayLike
+    ) -> NDArray[np.float64]:
+        """x_0 = (w, q / |q|, s): squared radii of the measured moments, clipped to the bounds."""
+        lim = self.limits
+        s_sq = np.clip(lim.radii_squared(inertia), lim.radius_min_m**2, lim.radius_max_m**2)
+        q = np.asarray(orientation_wxyz, dtype=float)
+        return np.concatenate(
+            [np.asarray(angular_velocity, dtype=float), q / np.linalg.norm(q), s_sq]
+        )
+
+    def inertia_of(self, states: ArrayLike) -> NDArray[np.float64]:
+        """Principal moments (..., 3) of states (..., NX)."""
+        return np.asarray(states, dtype=float)[..., RADII_SQ] @ self.inertia_map.T
+
+    def variable_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
+        """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0."""
+        lim = self.limits
+        n = self.horizon
+        x0 = np.asarray(x_init, dtype=float)
+        r_now = np.sqrt(x0[RADII_SQ])
+        k = np.arange(n)[:, None]
+        r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
+        rate = 2.0 * lim.radius_step_max_m * r_low  # (n, 3) [m^2] per step
+        lo = np.full((n, NX + NU), -np.inf)
+        hi = np.full((n, NX + NU), np.inf)
+        lo[:, RADII_SQ] = lim.radius_min_m**2
+        hi[:, RADII_SQ] = lim.radius_max_m**2
+        lo[:, NX : NX + 3] = -rate
+        hi[:, NX : NX + 3] = rate
+        lo[:, NX + 3] = 0.0
+        lo[0, :NX] = x0
+        hi[0, :NX] = x0
+        lo_n = np.full(NX, -np.inf)
+        hi_n = np.full(NX, np.inf)
+        lo_n[RADII_SQ] = lim.radius_min_m**2
+        hi_n[RADII_SQ] = lim.radius_max_m**2
+        return np.concatenate([lo.ravel(), lo_n]), np.concatenate([hi.ravel(), hi_n])
+
+    def constraint_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
+        """(lbg, ubg): gaps = 0, tension rows (module docstring)."""
+        lim = self.limits
+        n = self.horizon
+        r_x = float(np.sqrt(np.asarray(x_init, dtype=float)[RADII_SQ][0]))
+        k = np.arange(n)
+        r_low = np.maximum(lim.radius_min_m[0], r_x - lim.radius_rate_max_m_s[0] * k * self.dt_s)
+        lo = np.zeros((n, NX + NG_PATH))
+        hi = np.zeros((n, NX + NG_PATH))
+        lo[:, NX] = lim.tension_min_n / (lim.body_mass_kg * r_low)
+        lo[0, NX] = -np.inf  # x_0 is measured: its tension is what it is
+        hi[:, NX] = np.inf
+        return lo.ravel(), hi.ravel()
+
+
+def build_ocp(
+    horizon: int, dt_s: float, limits: MorphingLimits, gap_next_minus_f: bool = False
+) -> MorphingOcp:
+    """Build the stage-wise OCP of the module docstring (SX, built once).
+
+    ``gap_next_minus_f`` writes the gaps as ``x_{k+1} - F(x_k, u_k)`` (fatrop's
+    structure detection requires it); the default ``F(x_k, u_k) - x_{k+1}`` is the
+    ``[A B -I]`` block form hpipm expects.
+    """
+    if horizon < 2:
+        raise ValueError(f"horizon must be >= 2, got {horizon}")
+    if not (np.isfinite(dt_s) and dt_s > 0.0):
+        raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
+    layout = ParameterLayout(horizon)
+    p = ca.SX.sym("p", layout.size)
+    w_ref = p[layout.w_ref]
+    q_ref = ca.reshape(p[layout.q_ref], 4, horizon + 1)
+    scales = p[layout.weights]
+    s_w, s_r, s_t = scales[0:3], scales[3:6], scales[6:9]
+    s_q, s_tq, slack_weight = scales[9], scales[10], scales[11]
+    s_i, momentum_blend = scales[12:15], scales[15]
+    i_nom = p[layout.nominal_inertia]
+    inertia_map = np.linalg.inv(limits.radius_squared_matrix)
+    m = ca.DM(inertia_map)
+    dynamics = dynamics_function(dt_s, inertia_map)
+
+    xs = [ca.SX.sym(f"x{k}", NX) for k in range(horizon + 1)]
+    us = [ca.SX.sym(f"u{k}", NU) for k in range(horizon)]
+
+    def tracked_rate(x: ca.SX) -> ca.SX:
+        """w (paper), or I w / I_nom (tracking "angular_momentum"), blended by a parameter."""
+        inertia = ca.mtimes(m, x[RADII_SQ])
+        return x[W] * (1.0 - momentum_blend + momentum_blend * inertia / i_nom)
+
+    def attitude_residual(x: ca.SX, k: int, scale: ca.SX) -> ca.SX:
+        qr = q_ref[:, k]
+        return scale * (x[Q] - qr * ca.dot(qr, x[Q]))  # sqrt(Q) (E - q_ref q_ref^T) q
+
+    z_parts: list[ca.SX] = []
+    g_parts: list[ca.SX] = []
+    residuals: list[ca.SX] = []
+    linear_cost = ca.SX(0)
+    for k in range(horizon):
+        x, u = xs[k], us[k]
+        z_parts += [x, u]
+        residuals += [
+            s_w * (tracked_rate(x) - w_ref),
+            attitude_residual(x, k, s_q),
+            s_i * (ca.mtimes(m, x[RADII_SQ]) - i_nom) / i_nom,
+            s_r * ca.mtimes(m, u[0:3]),  # dI = M ds, weighed as the paper weighs dI
+            np.sqrt(2.0 * _SLACK_QUADRATIC) * u[3],
+        ]
+        linear_cost += slack_weight * u[3]
+        gap = dynamics(x, u) - xs[k + 1]
+        g_parts += [-gap if gap_next_minus_f else gap, x[1] ** 2 + x[2] ** 2 + u[3]]
+    x_n = xs[horizon]
+    z_parts.append(x_n)
+    residuals += [s_t * (tracked_rate(x_n) - w_ref), attitude_residual(x_n, horizon, s_tq)]
+    residual = ca.vertcat(*residuals)
+    return MorphingOcp(
+        horizon=horizon,
+        dt_s=dt_s,
+        limits=limits,
+        z=ca.vertcat(*z_parts),
+        p=p,
+        residual=residual,
+        linear_cost=linear_cost,
+        objective=0.5 * ca.sumsqr(residual) + linear_cost,
+        g=ca.vertcat(*g_parts),
+        layout=layout,
+        nx=[NX] * (horizon + 1),
+        nu=[NU] * horizon + [0],
+        ng=[NG_PATH] * horizon + [0],
+        equality=([True] * NX + [False] * NG_PATH) * horizon,
+        gap_next_minus_f=gap_next_minus_f,
+    )
+
+
+def parameter_vector(
+    layout: ParameterLayout,
+    w_ref_rad_s: ArrayLike,
+    q_ref_wxyz: ArrayLike,
+    weights: MpcWeights,
+    nominal_inertia_kg_m2: ArrayLike,
+) -> NDArray[np.float64]:
+    """Numeric ``p``: reference rate, attitude references (N+1, 4), weights, nominal inertia."""
+    q_ref = np.asarray(q_ref_wxyz, dtype=float).reshape(layout.horizon + 1, 4)
+    return np.concatenate(
+        [
+            np.asarray(w_ref_rad_s, dtype=float).reshape(3),
+            q_ref.ravel(),
+            weights.residual_scales(),
+            np.asarray(nominal_inertia_kg_m2, dtype=float).reshape(3),
+        ]
+    )

@@ -1,0 +1,351 @@
+"""``inertial_morphing_mpc`` node: the MPC of paper section VI on the node graph.
+
+Thin ROS layer over :class:`splitter_mpc.core.controller.MorphingController`
+(the library loop calls the same object). Lockstep (docs/ARCHITECTURE.md): once
+it holds ``/splitter/imu`` and ``/splitter/inertia`` stamped with the same control
+tick ``t`` it re-plans (on the 100 ms grid, or without a plan) and publishes the
+setpoint for ``t`` on ``/splitter/inertia_setpoint`` stamped ``t``. The first tick
+waits for the attitude reference (``/splitter/attitude_reference`` and
+``/splitter/attitude_reference_pose``, latched, published by the gait phase
+manager on its first tick), so that the first plan does not depend on message
+order. ``/splitter/gait_phase`` (latched) switches it off in LANDED.
+``/diagnostics`` every 100 ms of simulated time: solve time, iterations,
+status, cost. Bad messages are rejected with a throttled warning; the node keeps
+its last good data.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
+
+from splitter_mpc.core.controller import ControllerConfig, MorphingController
+from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.ocp import MpcWeights
+from splitter_mpc.core.solvers import SOLVERS, SolverOptions
+from splitter_msgs_py import names
+from splitter_msgs_py.conversions import (
+    DiagnosticStatusSample,
+    MessageValidationError,
+    diagnostics_to_msg,
+    imu_from_msg,
+    pose_from_msg,
+    stamp_from_msg,
+    twist_from_msg,
+    vector3_from_msg,
+    vector3_to_msg,
+)
+from splitter_msgs_py.parameters import (
+    InvalidParameterError,
+    ParameterSpec,
+    declare_parameters,
+    rejection_counts,
+    warn_throttled,
+)
+from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+from splitter_sim.core.model import RobotModel
+
+NODE_NAME = "inertial_morphing_mpc"
+MAX_INERTIA_KG_M2 = 1.0e4  # [kg m^2] a measured moment above this is a corrupt message
+MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates
+
+PARAMETERS = (
+    ParameterSpec("enabled", True, "run the MPC; false holds the nominal inertia (open loop)"),
+    ParameterSpec("q_w", [100.0, 100.0, 100.0], "angular velocity weights Q_w", 0.0, 1e9, length=3),
+    ParameterSpec(
+        "r", [0.01, 1.0, 1.0], "control effort weights R (dI per step)", 1e-9, 1e9, length=3
+    ),
+    ParameterSpec(
+        "q_t", [100.0, 10.0, 100.0], "terminal angular velocity weights Q_t", 0.0, 1e9, length=3
+    ),
+    ParameterSpec("q_q", 0.0, "quaternion tracking weight Q_q", 0.0, 1e9),
+    ParameterSpec("q_tq", 0.0, "terminal quaternion weight Q_tq", 0.0, 1e9),
+    ParameterSpec(
+        "tension_slack_weight", 100.0, "L1 penalty of a tension shortfall [s^2/rad^2]", 0.0, 1e9
+    ),
+    ParameterSpec("horizon", 50, "prediction horizon N [steps]", 2, 1000),
+    ParameterSpec("dt_s", 0.01, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
+    ParameterSpec("replan_period_s", 0.1, "re-plan period [s]", 0.001, 10.0),
+    ParameterSpec("control_period_s", 0.01, "setpoint period [s]", 0.001, 1.0),
+    ParameterSpec("solver", "fatrop", "optimisation back-end", choices=SOLVERS),
+    ParameterSpec("max_iter", 30, "iteration cap per solve", 1, 10000),
+    ParameterSpec("max_solve_time_s", 0.08, "wall-time cap per solve [s]", 1e-3, 60.0),
+    ParameterSpec("tolerance", 1e-8, "solver tolerance", 1e-14, 1e-2),
+    ParameterSpec("compile", True, "compile the derivative code with gcc (cached on disk)"),
+    ParameterSpec(
+        "cache_dir", "", "compiled-code cache ('' = $SPLITTER_CACHE_DIR or ~/.cache/splitter)"
+    ),
+    ParameterSpec("tension_min_n", 1.0, "taut-tether margin [N]", 0.0, 1e4),
+    ParameterSpec(
+        "radius_rate_scale", 1.0, "share of the actuator radius speeds planned", 1e-3, 1.0
+    ),
+    ParameterSpec(
+        "diagnostics_period_s", 0.1, "diagnostics period, simulated time [s]", 0.001, 10.0
+    ),
+)
+
+
+def controller_config_from_parameters(values: dict) -> ControllerConfig:
+    """The core configuration from validated parameter values (InvalidParameterError if not)."""
+    try:
+        options = SolverOptions(
+            max_iter=int(values["max_iter"]),
+            max_time_s=float(values["max_solve_time_s"]),
+            tol=float(values["tolerance"]),
+            compile=bool(values["compile"]),
+            cache_dir=Path(values["cache_dir"]).expanduser() if values["cache_dir"] else None,
+        )
+        mpc = MpcSettings(
+            horizon=int(values["horizon"]),
+            dt_s=float(values["dt_s"]),
+            solver=str(values["solver"]),
+            options=options,
+            tension_min_n=float(values["tension_min_n"]),
+            radius_rate_scale=float(values["radius_rate_scale"]),
+        )
+        weights = MpcWeights(
+            q_w=tuple(values["q_w"]),
+            r=tuple(values["r"]),
+            q_t=tuple(values["q_t"]),
+            q_q=float(values["q_q"]),
+            q_tq=float(values["q_tq"]),
+            tension_slack=float(values["tension_slack_weight"]),
+        )
+        return ControllerConfig(
+            enabled=bool(values["enabled"]),
+            weights=weights,
+            mpc=mpc,
+            replan_period_s=float(values["replan_period_s"]),
+            control_period_s=float(values["control_period_s"]),
+        )
+    except ValueError as exc:
+        raise InvalidParameterError(f"parameters (horizon/dt_s/periods/solver): {exc}") from exc
+
+
+class InertialMorphingMpcNode(Node):
+    """Answers each control tick's imu + inertia with an inertia setpoint."""
+
+    def __init__(self, **kwargs) -> None:
+        overrides = list(kwargs.pop("parameter_overrides", None) or [])
+        if not any(p.name == "use_sim_time" for p in overrides):
+            overrides.append(Parameter("use_sim_time", value=True))
+        super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
+        try:
+            values = declare_parameters(self, PARAMETERS)
+            config = controller_config_from_parameters(values)
+        except InvalidParameterError:
+            self.destroy_node()
+            raise
+        self.get_logger().info(
+            f"building the MPC (solver {config.mpc.solver}, N = {config.mpc.horizon}, "
+            f"dt = {config.mpc.dt_s} s); the first start compiles and caches its code"
+        )
+        self.controller = MorphingController(RobotModel(), config)
+        self._control_ns = config.control_period_ns
+        self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
+        self._imu: dict[int, object] = {}
+        self._inertia: dict[int, np.ndarray] = {}
+        self._w_ref: tuple[int, np.ndarray] | None = None
+        self._q_ref: tuple[int, np.ndarray] | None = None
+        self._reference_stamp: int | None = None
+        self._phase: str | None = None
+        self._waiting_tick: int | None = None
+        self._last_answered: int | None = None
+        self.published = 0
+
+        self._setpoint_pub = self.create_publisher(
+            Vector3Stamped, names.INERTIA_SETPOINT, qos_for(names.INERTIA_SETPOINT)
+        )
+        self._diagnostics_pub = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
+        )
+        self.create_subscription(Imu, names.IMU, self._on_imu, qos_for(names.IMU))
+        self.create_subscription(
+            Vector3Stamped, names.INERTIA, self._on_inertia, qos_for(names.INERTIA)
+        )
+        self.create_subscription(
+            TwistStamped, names.ATTITUDE_REFERENCE, self._on_w_ref, LATCHED_QOS
+        )
+        self.create_subscription(
+            PoseStamped, names.ATTITUDE_REFERENCE_POSE, self._on_q_ref, LATCHED_QOS
+        )
+        self.create_subscription(String, names.GAIT_PHASE, self._on_phase, LATCHED_QOS)
+        self.get_logger().info("ready")
+
+    # --- inputs --------------------------------------------------------------------------
+    def _reject(self, topic: str, exc: Exception) -> None:
+        warn_throttled(self, topic, f"rejected {topic}: {exc}; keeping the last good data")
+
+    def _on_imu(self, msg: Imu) -> None:
+        try:
+            sample = imu_from_msg(msg)
+            if np.max(np.abs(sample.angular_velocity_rad_s)) > MAX_RATE_RAD_S:
+                raise MessageValidationError(
+                    f"angular_velocity: |w| component above {MAX_RATE_RAD_S} rad/s"
+                )
+        except MessageValidationError as exc:
+            self._reject(names.IMU, exc)
+            return
+        self._imu[sample.t_ns] = sample
+        self._try_tick(sample.t_ns)
+
+    def _on_inertia(self, msg: Vector3Stamped) -> None:
+        try:
+            sample = vector3_from_msg(msg)
+            if np.any(sample.vector <= 0.0) or np.any(sample.vector > MAX_INERTIA_KG_M2):
+                raise MessageValidationError(
+                    f"vector: moments must be in (0, {MAX_INERTIA_KG_M2:g}] kg m^2, "
+                    f"got {sample.vector.tolist()}"
+                )
+        except MessageValidationError as exc:
+            self._reject(names.INERTIA, exc)
+            return
+        self._inertia[sample.t_ns] = sample.vector
+        self._try_tick(sample.t_ns)
+
+    def _on_w_ref(self, msg: TwistStamped) -> None:
+        try:
+            self._w_ref = twist_from_msg(msg)
+            if np.max(np.abs(self._w_ref[1])) > MAX_RATE_RAD_S:
+                self._w_ref = None
+                raise MessageValidationError("twist.angular: above the rate limit")
+        except MessageValidationError as exc:
+            self._reject(names.ATTITUDE_REFERENCE, exc)
+            return
+        self._update_reference()
+
+    def _on_q_ref(self, msg: PoseStamped) -> None:
+        try:
+            t_ns, q, _ = pose_from_msg(msg)
+        except MessageValidationError as exc:
+            self._reject(names.ATTITUDE_REFERENCE_POSE, exc)
+            return
+        self._q_ref = (t_ns, q)
+        self._update_reference()
+
+    def _on_phase(self, msg: String) -> None:
+        if msg.data not in names.GAIT_PHASES:
+            self._reject(names.GAIT_PHASE, ValueError(f"unknown phase {msg.data!r}"))
+            return
+        self._phase = msg.data
+
+    def _update_reference(self) -> None:
+        if self._w_ref is None or self._q_ref is None:
+            return
+        stamp = self._q_ref[0]
+        try:
+            self.controller.set_reference(stamp, self._w_ref[1], self._q_ref[1])
+        except ValueError as exc:
+            self._reject(names.ATTITUDE_REFERENCE_POSE, exc)
+            return
+        self._reference_stamp = stamp
+        if self._waiting_tick is not None:
+            tick, self._waiting_tick = self._waiting_tick, None
+            self._try_tick(tick)
+
+    # --- the tick ------------------------------------------------------------------------
+    def _try_tick(self, t_ns: int) -> None:
+        if t_ns % self._control_ns != 0 or t_ns == self._last_answered:
+            self._drop_before(t_ns)
+            return
+        if t_ns not in self._imu or t_ns not in self._inertia:
+            return
+        if self.controller.config.enabled and self.controller.reference is None:
+            self._waiting_tick = t_ns  # answered when the first reference arrives
+            return
+        imu = self._imu[t_ns]
+        inertia = self._inertia[t_ns]
+        try:
+            setpoint = self.controller.on_state(
+                t_ns, imu.angular_velocity_rad_s, imu.orientation_wxyz, inertia, self._phase
+            )
+        except ValueError as exc:  # inputs checked above; keep running regardless
+            self._reject("state", exc)
+            return
+        self._setpoint_pub.publish(vector3_to_msg(t_ns, setpoint, names.BASE_FRAME))
+        self.published += 1
+        self._last_answered = t_ns
+        self._drop_before(t_ns + 1)
+        if t_ns % self._diagnostics_ns == 0:
+            self._publish_diagnostics(t_ns)
+
+    def _drop_before(self, t_ns: int) -> None:
+        for buffer in (self._imu, self._inertia):
+            for stamp in [s for s in buffer if s < t_ns - self._control_ns]:
+                del buffer[stamp]
+
+    def _publish_diagnostics(self, t_ns: int) -> None:
+        s = self.controller.status
+        level = 0
+        message = s.solve_status
+        if not s.active:
+            message = "inactive: holding the nominal inertia"
+        elif s.consecutive_failures > 0:
+            level = 1 if s.consecutive_failures < 5 else 2
+            message = f"{s.solve_status}: executing the previous plan"
+        values = {
+            "active": s.active,
+            "phase": s.phase,
+            "solver": s.solver,
+            "solve_status": s.solve_status,
+            "solve_ok": s.solve_ok,
+            "converged": s.converged,
+            "iterations": s.iterations,
+            "solve_time_ms": s.solve_time_ms,
+            "cost": s.cost,
+            "infeasibility": s.infeasibility,
+            "plan_age_s": s.plan_age_s,
+            "solves": s.solves,
+            "failures": s.failures,
+            "consecutive_failures": s.consecutive_failures,
+            "setpoint_ixx_kg_m2": s.setpoint_kg_m2[0],
+            "setpoint_iyy_kg_m2": s.setpoint_kg_m2[1],
+            "setpoint_izz_kg_m2": s.setpoint_kg_m2[2],
+            "rejected_messages": sum(rejection_counts(self).values()),
+        }
+        values = {
+            k: v for k, v in values.items() if not (isinstance(v, float) and not np.isfinite(v))
+        }
+        status = DiagnosticStatusSample(f"{NODE_NAME}: inertia setpoint", level, message, values)
+        try:
+            self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [status]))
+        except MessageValidationError as exc:
+            self.get_logger().error(f"diagnostics not published: {exc}")
+
+
+def stamp_of(msg) -> int:
+    """Stamp [ns] of a stamped message (for logs)."""
+    return stamp_from_msg(msg.header.stamp)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = InertialMorphingMpcNode()
+        rclpy.spin(node)
+    except InvalidParameterError as exc:
+        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
