@@ -75,7 +75,8 @@ def play(
     context, bag_dir: Path, until, timeout_s: float = 10.0, **params
 ) -> tuple[PlayerNode, Listener]:
     listener = Listener(context)
-    overrides = [Parameter("bag", value=str(bag_dir)), Parameter("start_delay_s", value=0.4)]
+    # Discovery on a loaded machine can take a while: 1 s before the first message.
+    overrides = [Parameter("bag", value=str(bag_dir)), Parameter("start_delay_s", value=1.0)]
     overrides += [Parameter(k, value=v) for k, v in params.items()]
     player = PlayerNode(context=context, parameter_overrides=overrides)
     executor = SingleThreadedExecutor(context=context)
@@ -109,7 +110,10 @@ def test_plays_selected_topic_with_original_timing_and_clock(ros_context, bag) -
     ]
     arrivals = np.array([t for _, _, t in listener.got]) - listener.got[0][2]
     expected = np.array([t for t, _ in written["/test/a"]]) - START_NS
-    assert np.max(np.abs(arrivals - expected)) < 40e6  # [ns] original timing within 40 ms
+    # Original timing: the span within 50 ms, each message within 100 ms (a 2-core CI
+    # machine shared by other jobs); playing at a wrong rate would be off by 300 ms.
+    assert abs(arrivals[-1] - expected[-1]) < 50e6
+    assert np.max(np.abs(arrivals - expected)) < 100e6
     # /clock: the playback time, every 20 ms of bag time, up to the end of the bag.
     assert listener.clock == sorted(listener.clock)
     assert listener.clock[0] == START_NS and listener.clock[-1] == START_NS + SPAN_NS
@@ -130,7 +134,7 @@ def test_rate_and_start_offset(ros_context, bag) -> None:
     expected = [(t, d) for t, d in written["/test/a"] if t >= START_NS + 200_000_000]
     assert [d for _, d, _ in listener.got] == [d for _, d in expected]
     span_s = (listener.got[-1][2] - listener.got[0][2]) * 1e-9
-    assert span_s == pytest.approx(0.4 / 2.0, abs=0.04)  # 0.4 s of bag at rate 2
+    assert span_s == pytest.approx(0.4 / 2.0, abs=0.06)  # 0.4 s of bag at rate 2
     assert listener.clock == []  # clock_rate_hz 0: no /clock
 
 
