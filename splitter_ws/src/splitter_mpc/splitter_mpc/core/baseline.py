@@ -1,0 +1,238 @@
+"""The reference MPC written the plain way: CasADi Opti + IPOPT, built once.
+
+Same optimal control problem as :mod:`.ocp`, in the paper's own variables
+(state ``[w, q, Ixx, Iyy, Izz]``, control ``dI``) and with the hardware limits
+written as they read (linear constraints on the squared radii ``A I`` and their
+steps ``A dI``), the way a first implementation would. Warm-started from the
+shifted previous solution (primal only), like the project's controller, so that
+``splitter bench mpc`` compares solvers on the same problem and the same
+information. Used only by the benchmark and its test.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from splitter_mpc.core.limits import morphing_limits
+from splitter_mpc.core.mpc import MpcPlan, MpcSettings
+from splitter_mpc.core.ocp import MpcWeights, quat_multiply
+from splitter_mpc.core.solvers import SolverResult
+from splitter_sim.core.model import RobotModel
+
+
+class OptiBaselineMpc:
+    """Opti + IPOPT on the paper's variables; the interface of ``InertialMorphingMpc``."""
+
+    def __init__(self, model: RobotModel, settings: MpcSettings | None = None) -> None:
+        self.model = model
+        self.settings = settings or MpcSettings(solver="ipopt")
+        n, dt = self.settings.horizon, self.settings.dt_s
+        self.limits = lim = morphing_limits(
+            model, dt, self.settings.tension_min_n, self.settings.radius_rate_scale
+        )
+        a_sq = ca.DM(lim.radius_squared_matrix)
+        opti = ca.Opti()
+        w = opti.variable(3, n + 1)
+        q = opti.variable(4, n + 1)
+        inertia = opti.variable(3, n + 1)
+        d_inertia = opti.variable(3, n)
+        slack = opti.variable(1, n)
+        self._p_x0 = opti.parameter(10)
+        self._p_w_ref = opti.parameter(3)
+        self._p_q_ref = opti.parameter(4, n + 1)
+        self._p_q_w = opti.parameter(3)
+        self._p_r = opti.parameter(3)
+        self._p_q_t = opti.parameter(3)
+        self._p_q_q = opti.parameter()
+        self._p_q_tq = opti.parameter()
+        self._p_slack = opti.parameter()
+        self._p_rate = opti.parameter(3, n)  # [m^2] bound on A dI_k
+        self._p_tension = opti.parameter(1, n)  # lower bound of w_y^2 + w_z^2
+        opti.subject_to(w[:, 0] == self._p_x0[0:3])
+        opti.subject_to(q[:, 0] == self._p_x0[3:7])
+        opti.subject_to(inertia[:, 0] == self._p_x0[7:10])
+        cost = 0
+        for k in range(n):
+            # dynamics with the correct gyroscopic sign (see ocp.py)
+            momentum = inertia[:, k] * w[:, k]
+            opti.subject_to(inertia[:, k + 1] == inertia[:, k] + d_inertia[:, k])
+            opti.subject_to(
+                inertia[:, k + 1] * w[:, k + 1] == momentum - dt * ca.cross(w[:, k], momentum)
+            )
+            q_next = q[:, k] + 0.5 * dt * quat_multiply(q[:, k], ca.vertcat(0, w[:, k]))
+            opti.subject_to(q[:, k + 1] == q_next / ca.norm_2(q_next))
+            # hardware limits
+            opti.subject_to(
+                opti.bounded(
+                    -self._p_rate[:, k], ca.mtimes(a_sq, d_inertia[:, k]), self._p_rate[:, k]
+                )
+            )
+            opti.subject_to(
+                opti.bounded(
+                    lim.radius_min_m**2, ca.mtimes(a_sq, inertia[:, k + 1]), lim.radius_max_m**2
+                )
+            )
+            opti.subject_to(slack[k] >= 0)
+            if k >= 1:
+                opti.subject_to(w[1, k] ** 2 + w[2, k] ** 2 + slack[k] >= self._p_tension[k])
+            e = w[:, k] - self._p_w_ref
+            q_ref = self._p_q_ref[:, k]
+            cost += ca.dot(e, self._p_q_w * e)
+            cost += self._p_q_q * 0.5 * (1 - ca.dot(q_ref, q[:, k]) ** 2)
+            cost += ca.dot(d_inertia[:, k], self._p_r * d_inertia[:, k])
+            cost += self._p_slack * slack[k] + 1e-4 * slack[k] ** 2
+        e = w[:, n] - self._p_w_ref
+        cost += ca.dot(e, self._p_q_t * e)
+        cost += self._p_q_tq * 0.5 * (1 - ca.dot(self._p_q_ref[:, n], q[:, n]) ** 2)
+        opti.minimize(cost)
+        opti.solver(
+            "ipopt",
+            {"print_time": False},
+            {"print_level": 0, "sb": "yes", "tol": self.settings.options.tol},
+        )
+        self._opti = opti
+        self._vars = (w, q, inertia, d_inertia, slack)
+        self._last: tuple[int, dict] | None = None
+
+    @property
+    def horizon(self) -> int:
+        return self.settings.horizon
+
+    def reset(self) -> None:
+        self._last = None
+
+    def solve(
+        self,
+        t_ns: int,
+        state: ArrayLike,
+        w_ref_rad_s: ArrayLike,
+        q_ref_wxyz: ArrayLike,
+        weights: MpcWeights,
+        *,
+        nominal_inertia_kg_m2: ArrayLike | None = None,
+    ) -> MpcPlan:
+        """Same contract as :meth:`InertialMorphingMpc.solve` (paper-form weights only)."""
+        del nominal_inertia_kg_m2  # the paper's J_w: no nominal-inertia terms
+        if weights.tracking != "angular_velocity" or any(weights.q_i):
+            raise ValueError("the Opti baseline implements the paper's cost only")
+        opti, lim, n, dt = self._opti, self.limits, self.horizon, self.settings.dt_s
+        x0 = np.asarray(state, dtype=float).reshape(10).copy()
+        x0[3:7] /= np.linalg.norm(x0[3:7])
+        s_now = np.clip(lim.radii_squared(x0[7:10]), lim.radius_min_m**2, lim.radius_max_m**2)
+        x0[7:10] = np.linalg.solve(lim.radius_squared_matrix, s_now)
+        r_now = np.sqrt(s_now)
+        k = np.arange(n)[:, None]
+        r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * dt)
+        opti.set_value(self._p_x0, x0)
+        opti.set_value(self._p_w_ref, np.asarray(w_ref_rad_s, dtype=float))
+        opti.set_value(self._p_q_ref, np.asarray(q_ref_wxyz, dtype=float).reshape(n + 1, 4).T)
+        opti.set_value(self._p_q_w, weights.q_w)
+        opti.set_value(self._p_r, weights.r)
+        opti.set_value(self._p_q_t, weights.q_t)
+        opti.set_value(self._p_q_q, weights.q_q)
+        opti.set_value(self._p_q_tq, weights.q_tq)
+        opti.set_value(self._p_slack, weights.tension_slack)
+        opti.set_value(self._p_rate, (2.0 * lim.radius_step_max_m * r_low).T)
+        opti.set_value(self._p_tension, lim.tension_min_n / (lim.body_mass_kg * r_low[:, 0]))
+        self._set_initial(int(t_ns), x0)
+        w, q, inertia, d_inertia, slack = self._vars
+        started = time.perf_counter()
+        try:
+            sol = opti.solve()
+            ok, status = True, opti.stats()["return_status"]
+            value = sol.value
+        except RuntimeError:
+            ok, status = False, opti.stats()["return_status"]
+            value = opti.debug.value
+        elapsed = time.perf_counter() - started
+        values = {
+            "w": np.asarray(value(w)),
+            "q": np.asarray(value(q)),
+            "inertia": np.asarray(value(inertia)),
+            "d_inertia": np.asarray(value(d_inertia)).reshape(3, n),
+            "slack": np.asarray(value(slack)).reshape(1, n),
+        }
+        if ok:
+            self._last = (int(t_ns), values)
+        result = SolverResult(
+            z=np.zeros(0),
+            lam_g=np.zeros(0),
+            lam_z=np.zeros(0),
+            status=str(status),
+            converged=ok,
+            usable=ok,
+            iterations=int(opti.stats().get("iter_count", -1)),
+            solve_time_s=elapsed,
+            cost=float(value(opti.f)) if ok else float("nan"),
+            infeasibility=0.0 if ok else float("inf"),
+        )
+        inertia_plan = values["inertia"].T
+        return MpcPlan(
+            t_ns=int(t_ns),
+            dt_ns=self.settings.dt_ns,
+            angular_velocity=values["w"].T,
+            orientation=values["q"].T,
+            inertia=inertia_plan,
+            radii=np.sqrt(np.maximum(inertia_plan @ lim.radius_squared_matrix.T, 0.0)),
+            result=result,
+        )
+
+    def _set_initial(self, t_ns: int, x0: np.ndarray) -> None:
+        """Shifted previous solution (tail rolled out), or the initial state everywhere."""
+        opti, n = self._opti, self.horizon
+        w, q, inertia, d_inertia, slack = self._vars
+        shift = None
+        if self._last is not None:
+            elapsed = t_ns - self._last[0]
+            if elapsed >= 0 and elapsed % self.settings.dt_ns == 0:
+                shift = elapsed // self.settings.dt_ns
+        if shift is None or shift >= n:
+            opti.set_initial(w, np.tile(x0[0:3, None], (1, n + 1)))
+            opti.set_initial(q, np.tile(x0[3:7, None], (1, n + 1)))
+            opti.set_initial(inertia, np.tile(x0[7:10, None], (1, n + 1)))
+            opti.set_initial(d_inertia, np.zeros((3, n)))
+            opti.set_initial(slack, np.zeros((1, n)))
+            return
+        last = self._last[1]
+        kept = n + 1 - shift
+        states = {key: last[key][:, shift:].copy() for key in ("w", "q", "inertia")}
+        states["w"][:, 0], states["q"][:, 0], states["inertia"][:, 0] = x0[0:3], x0[3:7], x0[7:10]
+        controls = np.hstack([last["d_inertia"][:, shift:], np.zeros((3, shift))])
+        # the tail rolled out with zero control, as the project's controller does
+        w_t, q_t, i_t = states["w"][:, -1], states["q"][:, -1], states["inertia"][:, -1]
+        tail = {"w": [], "q": [], "inertia": []}
+        for _ in range(n + 1 - kept):
+            w_t, q_t = _euler_step(w_t, q_t, i_t, self.settings.dt_s)
+            tail["w"].append(w_t)
+            tail["q"].append(q_t)
+            tail["inertia"].append(i_t)
+        for key, value in states.items():
+            if tail[key]:
+                states[key] = np.hstack([value, np.array(tail[key]).T])
+        opti.set_initial(w, states["w"])
+        opti.set_initial(q, states["q"])
+        opti.set_initial(inertia, states["inertia"])
+        opti.set_initial(d_inertia, controls)
+        opti.set_initial(slack, np.hstack([last["slack"][:, shift:], np.zeros((1, shift))]))
+
+
+def _euler_step(w: np.ndarray, q: np.ndarray, inertia: np.ndarray, dt: float):
+    """One step of the MPC model at constant inertia (numpy)."""
+    momentum = inertia * w
+    w_next = (momentum - dt * np.cross(w, momentum)) / inertia
+    qw, qx, qy, qz = q
+    wx, wy, wz = w
+    q_dot = 0.5 * np.array(
+        [
+            -qx * wx - qy * wy - qz * wz,
+            qw * wx + qy * wz - qz * wy,
+            qw * wy - qx * wz + qz * wx,
+            qw * wz + qx * wy - qy * wx,
+        ]
+    )
+    q_next = q + dt * q_dot
+    return w_next, q_next / np.linalg.norm(q_next)

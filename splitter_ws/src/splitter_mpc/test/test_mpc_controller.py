@@ -1,0 +1,121 @@
+"""The MPC scheduler: re-plan grid, playback, phases, failures, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splitter_mpc.core.controller import ControllerConfig, MorphingController
+from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
+from splitter_mpc.core.solvers import SolverOptions
+from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+
+MODEL = RobotModel()
+MS = 1_000_000  # [ns]
+I0 = principal_inertia(MODEL, PAPER_INITIAL_RADII_M)
+W0 = np.array([-0.3, -0.9, 0.9])  # [rad/s]
+Q0 = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def mpc() -> InertialMorphingMpc:
+    return InertialMorphingMpc(MODEL, MpcSettings(options=SolverOptions(compile=False)))
+
+
+def controller(mpc: InertialMorphingMpc, **config) -> MorphingController:
+    mpc.reset()
+    ctl = MorphingController(MODEL, ControllerConfig(**config), mpc)
+    ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
+    return ctl
+
+
+def tick(ctl: MorphingController, t_ms: int, phase: str | None = "IN_FLIGHT") -> np.ndarray:
+    return ctl.on_state(t_ms * MS, W0, Q0, I0, phase)
+
+
+def test_replans_on_the_100_ms_grid_and_plays_the_plan_back(mpc) -> None:
+    ctl = controller(mpc)
+    first = tick(ctl, 0)
+    assert ctl.status.replanned and ctl.status.solve_ok and ctl.status.active
+    plan = ctl.plan
+    np.testing.assert_allclose(first, plan.inertia[1])
+    for t_ms in range(10, 100, 10):
+        setpoint = tick(ctl, t_ms)
+        assert not ctl.status.replanned
+        np.testing.assert_allclose(setpoint, plan.inertia[t_ms // 10 + 1])
+    tick(ctl, 100)
+    assert ctl.status.replanned and ctl.plan is not plan and ctl.status.solves == 2
+
+
+def test_injected_failure_keeps_executing_the_previous_plan_then_recovers(mpc) -> None:
+    ctl = controller(mpc)
+    tick(ctl, 0)
+    plan = ctl.plan
+    ctl.inject_solver_failures(1)
+    for t_ms in range(100, 200, 10):
+        setpoint = tick(ctl, t_ms)
+        np.testing.assert_allclose(setpoint, plan.setpoint_at(t_ms * MS))  # the shifted plan
+    assert ctl.status.failures == 1 and ctl.status.consecutive_failures == 1
+    assert ctl.status.solve_status == "injected_failure" and not ctl.status.solve_ok
+    assert ctl.plan is plan and ctl.status.plan_age_s == pytest.approx(0.19)
+    tick(ctl, 200)
+    assert ctl.status.solve_ok and ctl.status.consecutive_failures == 0 and ctl.plan is not plan
+
+
+def test_a_solver_exception_is_a_failed_solve_and_never_a_nan(mpc, monkeypatch) -> None:
+    ctl = controller(mpc)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("solver crashed")
+
+    monkeypatch.setattr(ctl.mpc, "solve", broken)
+    setpoint = tick(ctl, 0)
+    np.testing.assert_allclose(setpoint, I0)  # no plan yet: hold the measured inertia
+    assert ctl.status.solve_status.startswith("error: solver crashed")
+    assert ctl.status.failures == 1
+
+
+def test_inactive_when_disabled_landed_or_without_reference(mpc) -> None:
+    ctl = controller(mpc, enabled=False)
+    first = ctl.on_state(0, W0, Q0, I0, "IN_FLIGHT")
+    later = ctl.on_state(10 * MS, W0, Q0, 1.1 * I0, "IN_FLIGHT")
+    np.testing.assert_allclose(first, I0)
+    np.testing.assert_allclose(later, I0)  # the nominal (first measured) inertia is held
+    assert not ctl.status.active and ctl.status.solves == 0
+
+    ctl = controller(mpc)
+    tick(ctl, 0, "IN_FLIGHT")
+    assert ctl.status.active
+    np.testing.assert_allclose(tick(ctl, 10, "LANDED"), I0)
+    assert not ctl.status.active and ctl.plan is None
+    tick(ctl, 20, "JUMP")  # active again (every phase but LANDED): re-plans at once
+    assert ctl.status.active and ctl.status.replanned
+
+    mpc.reset()
+    fresh = MorphingController(MODEL, ControllerConfig(), mpc)
+    np.testing.assert_allclose(fresh.on_state(0, W0, Q0, I0, None), I0)
+    assert not fresh.status.active  # no attitude reference yet
+
+
+def test_bad_input_is_rejected_and_leaves_the_state_unchanged(mpc) -> None:
+    ctl = controller(mpc)
+    tick(ctl, 0)
+    plan = ctl.plan
+    for w, q, inertia in (
+        ([np.nan, 0.0, 0.0], Q0, I0),
+        (W0, [0.0, 0.0, 0.0, 0.0], I0),
+        (W0, Q0, [0.5, -1.0, 1.0]),
+        (W0, Q0, [1.0, 2.0]),
+    ):
+        with pytest.raises(ValueError):
+            ctl.on_state(10 * MS, w, q, inertia, "IN_FLIGHT")
+    assert ctl.plan is plan
+    with pytest.raises(ValueError):
+        ctl.set_reference(0, [0.0, np.inf, 0.0], Q0)
+
+
+def test_config_rejects_inconsistent_periods() -> None:
+    with pytest.raises(ValueError, match="multiple"):
+        ControllerConfig(replan_period_s=0.015)
+    with pytest.raises(ValueError, match="nominal"):
+        ControllerConfig(nominal_inertia_kg_m2=(1.0, -1.0, 1.0))

@@ -1,0 +1,181 @@
+"""The MPC core against physics and the hardware: limits, model, cost, plans."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from splitter_mpc.core.gait import quaternion_multiply, rotation_matrix
+from splitter_mpc.core.limits import (
+    limb_radial_speed_max_m_s,
+    morphing_limits,
+    project_to_reachable,
+    radius_squared_matrix,
+)
+from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
+from splitter_mpc.core.ocp import NU, NX, MpcWeights, build_ocp, dynamics_function
+from splitter_mpc.core.solvers import SolverOptions
+from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+
+MODEL = RobotModel()
+DT = 0.01  # [s]
+LIMITS = morphing_limits(MODEL, DT)
+I0 = principal_inertia(MODEL, PAPER_INITIAL_RADII_M)  # [0.48, 141.36, 141.36]
+W0 = np.array([-0.3, -0.9, 0.9])  # [rad/s] paper Table I
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def mpc() -> InertialMorphingMpc:
+    return InertialMorphingMpc(MODEL, MpcSettings(options=SolverOptions(compile=False)))
+
+
+def test_squared_radii_are_linear_in_the_principal_moments() -> None:
+    rng = np.random.default_rng(1)
+    radii = rng.uniform(MODEL.radii_min_m, MODEL.radii_max_m, size=(20, 3))
+    a = radius_squared_matrix(MODEL)
+    np.testing.assert_allclose(principal_inertia(MODEL, radii) @ a.T, radii**2, rtol=1e-12)
+
+
+def test_limits_are_the_hardware_ones() -> None:
+    # Tether = 2 r_x: r_x moves at half the reel speed.
+    assert LIMITS.radius_rate_max_m_s[0] == pytest.approx(MODEL.tether_speed_max_m_s / 2.0)
+    # Limb: the knee at full speed at the stretched end of its range, where the tip
+    # moves slowest per radian (finite difference of the reach).
+    knee, h = MODEL.knee_min_rad, 1e-7
+    dreach_dknee = (MODEL.limb_reach_m(knee) - MODEL.limb_reach_m(knee + h)) / h
+    expected = dreach_dknee * MODEL.joint_speed_max_rad_s
+    assert limb_radial_speed_max_m_s(MODEL) == pytest.approx(expected, rel=1e-4)
+    np.testing.assert_allclose(
+        LIMITS.inertia_max_kg_m2, principal_inertia(MODEL, MODEL.radii_max_m)
+    )
+    np.testing.assert_allclose(
+        LIMITS.inertia_min_kg_m2, principal_inertia(MODEL, MODEL.radii_min_m)
+    )
+    assert np.all(LIMITS.inertia_min_kg_m2 > 0.0)
+    # dI_max: the largest one-step change with every radius at its maximum moving at
+    # its top speed (derivative along the corners of the step box, eq. 2 differentiated).
+    r, eps = MODEL.radii_max_m, 1e-6
+    corners = np.array(np.meshgrid(*[[-1.0, 1.0]] * 3)).reshape(3, -1).T
+    moved = principal_inertia(MODEL, r + eps * corners * LIMITS.radius_step_max_m)
+    rates = (moved - principal_inertia(MODEL, r)) / eps
+    np.testing.assert_allclose(
+        np.max(np.abs(rates), axis=0), LIMITS.inertia_step_max_kg_m2, rtol=1e-5
+    )
+    assert LIMITS.is_reachable(I0)
+    assert not LIMITS.is_reachable([5.0, 141.0, 141.0])  # violates a triangle inequality
+
+
+def test_projection_keeps_reachable_moments_and_clips_others() -> None:
+    np.testing.assert_allclose(project_to_reachable(LIMITS, I0), I0, rtol=1e-12)
+    clipped = project_to_reachable(LIMITS, principal_inertia(MODEL, [3.5, 0.2, 0.2]))
+    np.testing.assert_allclose(np.sqrt(LIMITS.radii_squared(clipped))[0], 3.0)
+
+
+def test_model_step_is_eulers_equation_with_the_correct_sign() -> None:
+    """I_{k+1} w_{k+1} = I_k w_k - dt w_k x (I_k w_k) for any inertia step."""
+    f = dynamics_function(DT, np.linalg.inv(LIMITS.radius_squared_matrix))
+    s0 = LIMITS.radii_squared(I0)
+    ds = np.array([-0.01, 0.002, -0.001])  # [m^2]
+    x = np.concatenate([W0, IDENTITY, s0])
+    x_next = np.asarray(f(x, np.concatenate([ds, [0.0]])), dtype=float).ravel()
+    inertia_next = np.linalg.solve(LIMITS.radius_squared_matrix, s0 + ds)
+    momentum = I0 * W0
+    np.testing.assert_allclose(
+        inertia_next * x_next[0:3], momentum - DT * np.cross(W0, momentum), rtol=1e-12
+    )
+    q_expected = IDENTITY + 0.5 * DT * quaternion_multiply(IDENTITY, np.concatenate([[0.0], W0]))
+    np.testing.assert_allclose(x_next[3:7], q_expected / np.linalg.norm(q_expected), rtol=1e-12)
+
+
+def test_model_conserves_world_angular_momentum_in_free_flight(mpc) -> None:
+    """The minus sign conserves H = R I w (to Euler's O(dt)); the paper's plus does not."""
+    x0 = mpc.ocp.state_from_measurement(W0, IDENTITY, I0)
+    states = mpc.rollout(x0, np.zeros((300, NU)))  # 3 s, constant inertia
+    world_h = np.array([rotation_matrix(x[3:7]) @ (I0 * x[0:3]) for x in states])
+    drift = np.max(np.linalg.norm(world_h - world_h[0], axis=1)) / np.linalg.norm(world_h[0])
+    assert drift < 5e-3
+    body_h = I0 * states[:, 0:3]
+    assert np.max(np.abs(body_h - body_h[0])) > 1.0  # the body-frame H does turn
+    # The paper's printed sign, same integrator: H is not conserved.
+    w, q = W0.copy(), IDENTITY.copy()
+    flipped = []
+    for _ in range(300):
+        flipped.append(rotation_matrix(q) @ (I0 * w))
+        q_dot = 0.5 * quaternion_multiply(q, np.concatenate([[0.0], w]))
+        w = (I0 * w + DT * np.cross(w, I0 * w)) / I0
+        q = (q + DT * q_dot) / np.linalg.norm(q + DT * q_dot)
+    flipped = np.array(flipped)
+    flipped_drift = np.max(np.linalg.norm(flipped - flipped[0], axis=1)) / np.linalg.norm(
+        flipped[0]
+    )
+    assert flipped_drift > 10 * drift
+
+
+def test_attitude_cost_treats_q_and_minus_q_alike() -> None:
+    ocp = build_ocp(4, DT, LIMITS)
+    cost = ca.Function("J", [ocp.z, ocp.p], [ocp.objective])
+    rng = np.random.default_rng(2)
+    xs = np.zeros((5, NX))
+    xs[:, 0:3] = rng.normal(size=(5, 3))
+    q = rng.normal(size=(5, 4))
+    xs[:, 3:7] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    xs[:, 7:10] = LIMITS.radii_squared(I0)
+    us = np.zeros((4, NU))
+    q_ref = rng.normal(size=(5, 4))
+    q_ref /= np.linalg.norm(q_ref, axis=1, keepdims=True)
+    weights = MpcWeights(q_w=(0.0,) * 3, q_t=(0.0,) * 3, q_q=7.0, q_tq=3.0)
+    from splitter_mpc.core.ocp import parameter_vector
+
+    p = parameter_vector(ocp.layout, [0.0, 1.0, 0.0], q_ref, weights, I0)
+    flipped = xs.copy()
+    flipped[:, 3:7] *= -1.0
+    j = float(cost(ocp.join(xs, us), p))
+    assert j == pytest.approx(float(cost(ocp.join(flipped, us), p)), rel=1e-12)
+    dots = np.sum(q_ref * xs[:, 3:7], axis=1)
+    expected = 7.0 * 0.5 * np.sum(1.0 - dots[:4] ** 2) + 3.0 * 0.5 * (1.0 - dots[4] ** 2)
+    assert j == pytest.approx(expected, rel=1e-9)
+
+
+def test_plan_stays_within_what_the_hardware_reaches(mpc) -> None:
+    mpc.reset()
+    plan = mpc.solve(
+        0, np.concatenate([W0, IDENTITY, I0]), [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights()
+    )
+    assert plan.result.converged and plan.result.usable
+    tol = 1e-6
+    assert np.all(plan.radii >= MODEL.radii_min_m - tol)
+    assert np.all(plan.radii <= MODEL.radii_max_m + tol)
+    assert np.all(np.abs(np.diff(plan.radii, axis=0)) <= LIMITS.radius_step_max_m + tol)
+    assert np.all(np.abs(np.diff(plan.inertia, axis=0)) <= LIMITS.inertia_step_max_kg_m2 + tol)
+    np.testing.assert_allclose(plan.inertia[0], I0, rtol=1e-9)
+    # the plan acts: it changes the inertia and lowers |w - w_ref| over the horizon
+    assert np.max(np.abs(plan.inertia - I0)) > 0.1
+    err = np.linalg.norm(plan.angular_velocity - [0.0, 1.0, 0.0], axis=1)
+    assert err[-1] < err[0]
+    # setpoint playback: the value at the end of each 10 ms step
+    np.testing.assert_allclose(plan.setpoint_at(0), plan.inertia[1])
+    np.testing.assert_allclose(plan.setpoint_at(35_000_000), plan.inertia[4])
+    np.testing.assert_allclose(plan.setpoint_at(10**10), plan.inertia[-1])
+
+
+def test_warm_start_is_the_shifted_previous_solution(mpc) -> None:
+    mpc.reset()
+    x = np.concatenate([W0, IDENTITY, I0])
+    first = mpc.solve(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    measured = np.concatenate(
+        [first.angular_velocity[10], first.orientation[10], first.inertia[10]]
+    )
+    x0 = mpc.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
+    z0, lam_g, _ = mpc._warm_start(100_000_000, x0)
+    xs, us = mpc.ocp.split(z0)
+    old_xs, old_us = mpc.ocp.split(first.result.z)
+    np.testing.assert_allclose(xs[:41], old_xs[10:], atol=1e-9)
+    np.testing.assert_allclose(us[:40], old_us[10:], atol=1e-12)
+    np.testing.assert_allclose(us[40:], 0.0)
+    np.testing.assert_allclose(xs[41:], mpc.rollout(xs[40], us[40:])[1:], atol=1e-12)
+    assert lam_g.shape == (mpc.ocp.n_g,)
+    # a solve from there converges, from the warm start
+    second = mpc.solve(100_000_000, measured, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    assert second.result.converged
