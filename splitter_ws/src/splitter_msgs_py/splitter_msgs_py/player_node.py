@@ -28,11 +28,11 @@ from splitter_msgs_py import names, qos
 from splitter_msgs_py.bag.metadata import read_metadata
 from splitter_msgs_py.bag.playback import (
     PlaybackClock,
-    parse_topic_list,
     seconds_to_ns,
     select_topics,
 )
 from splitter_msgs_py.bag.reader import BagMessage, read_messages
+from splitter_msgs_py.bag.ros_params import declare_topic_list
 from splitter_msgs_py.bag.ros_qos import publisher_qos
 from splitter_msgs_py.conversions import clock_to_msg, message_class
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
@@ -51,7 +51,6 @@ PARAMETERS = (
         min_value=0.0,
         max_value=1e9,
     ),
-    ParameterSpec("topics", "", "topics to play, comma separated (empty: see regex)"),
     ParameterSpec("regex", "", "also play topics matching this regex (both empty: all)"),
     ParameterSpec("exclude_regex", "", "never play topics matching this regex"),
     ParameterSpec(
@@ -100,7 +99,7 @@ class PlayerNode(Node):
         recorded = {t.topic_metadata.name: t for t in self.metadata.topics_with_message_count}
         selected = select_topics(
             recorded,
-            parse_topic_list(str(p["topics"])),
+            declare_topic_list(self, "topics", "topics to play (none and no regex: all)"),
             str(p["regex"]),
             str(p["exclude_regex"]),
         )

@@ -31,7 +31,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from splitter_msgs_py.bag import definitions
-from splitter_msgs_py.bag.playback import parse_topic_list, seconds_to_ns, select_topics
+from splitter_msgs_py.bag.playback import seconds_to_ns, select_topics
+from splitter_msgs_py.bag.ros_params import declare_key_values, declare_topic_list
 from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos, type_hash_of
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
@@ -45,7 +46,6 @@ PARAMETERS = (
         "",
         "bag directory to create (must not exist); empty: rosbag2_<date>-<time> here",
     ),
-    ParameterSpec("topics", "", "topics to record, comma separated (empty: see regex)"),
     ParameterSpec(
         "regex", "", "also record topics matching this regular expression (both empty: all)"
     ),
@@ -118,7 +118,12 @@ class RecorderNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self._params = p
-        self._listed = parse_topic_list(str(p["topics"]))
+        self._listed = declare_topic_list(
+            self, "topics", "topics to record (none and no regex: every topic)"
+        )
+        custom_data = declare_key_values(
+            self, "custom_data", "KEY=VALUE pairs stored in the bag's custom_data"
+        )
         for pattern_name in ("regex", "exclude_regex"):
             try:
                 re.compile(str(p[pattern_name]))
@@ -134,6 +139,7 @@ class RecorderNode(Node):
             flush_period_s=float(p["flush_period_s"]),
             max_bagfile_size_bytes=int(p["max_bagfile_size_bytes"]),
             max_bagfile_duration_ns=seconds_to_ns(float(p["max_bagfile_duration_s"])),
+            custom_data=custom_data,
         )
         self._recording: dict[str, Any] = {}
         self._skipped: set[str] = set()
