@@ -1,0 +1,143 @@
+"""The paper's flight scenarios in the library closed loop (simulator, allocator, gait, MPC).
+
+Physics first: angular momentum is conserved in torque-free flight whatever the
+controller does, so the MPC can only turn it into the body y axis (and the final
+spin rate is |H| / Iyy). The paper's own numbers are compared where this
+implementation reproduces them; where it does not, the strict xfail tests
+record the gap (explained in the splitter_mpc.core.mpc docstring) and will flag the day it closes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splitter_bringup.core.closed_loop import run_closed_loop
+from splitter_bringup.core.metrics import flight_summary
+from splitter_bringup.core.scenario import load_scenario
+from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.solvers import SolverOptions
+from splitter_sim.core.model import RobotModel
+
+pytestmark = pytest.mark.slow
+MODEL = RobotModel()
+# SX virtual machine: no compiler and no cache needed; the same solutions.
+MPC = MpcSettings(options=SolverOptions(compile=False))
+
+
+def run(name: str, variant: str, **kwargs):
+    scenario = load_scenario(name, variant)
+    series = run_closed_loop(scenario, mpc=MPC, **kwargs)
+    metrics = flight_summary(
+        series,
+        scenario.paper,
+        scenario.controller.w_ref_rad_s,
+        scenario.controller.attitude_reference,
+    )
+    return series, {k: m.value for k, m in metrics.items()}
+
+
+@pytest.fixture(scope="module")
+def spin():
+    return {v: run("spin_stabilization", v) for v in ("mpc", "open_loop")}
+
+
+@pytest.fixture(scope="module")
+def orientation():
+    return {v: run("orientation_tracking", v) for v in ("quaternion_tracking", "velocity_only")}
+
+
+def off_axis_rate(series) -> float:
+    final = series.t_s >= series.t_s[-1] - 0.5
+    w = series.angular_velocity_rad_s[final]
+    return float(np.mean(np.hypot(w[:, 0], w[:, 2])))
+
+
+def test_flight_conserves_angular_momentum_and_stays_reachable(spin) -> None:
+    for series, metrics in spin.values():
+        assert metrics["momentum_end"] == pytest.approx(metrics["momentum_start"], rel=1e-3)
+        assert np.all(np.isfinite(series.inertia_setpoint_kg_m2))
+        assert np.all(series.radii_m >= MODEL.radii_min_m - 1e-6)
+        assert np.all(series.radii_m <= MODEL.radii_max_m + 1e-6)
+    open_loop, metrics = spin["open_loop"]
+    inertia = open_loop.principal_inertia_kg_m2
+    assert np.max(np.abs(inertia - inertia[0])) < 1e-9
+    # constant inertia, no torque: the rotational energy is conserved too
+    assert metrics["energy_end_j"] == pytest.approx(metrics["energy_start_j"], rel=1e-6)
+
+
+def test_mpc_turns_the_spin_toward_body_y_where_the_open_loop_tumbles(spin) -> None:
+    mpc, mpc_metrics = spin["mpc"]
+    open_loop, open_metrics = spin["open_loop"]
+    # Open loop: the body is axisymmetric about x (Iyy = Izz): w_x and sqrt(w_y^2 + w_z^2)
+    # stay constant while (w_y, w_z) precesses: it never settles about y.
+    w = open_loop.angular_velocity_rad_s
+    np.testing.assert_allclose(w[:, 0], -0.3, atol=1e-6)
+    np.testing.assert_allclose(np.hypot(w[:, 1], w[:, 2]), np.hypot(0.9, 0.9), rtol=1e-6)
+    assert off_axis_rate(mpc) < 0.3 * np.linalg.norm(mpc.angular_velocity_rad_s[0])
+    assert mpc_metrics["spin_alignment_final"] > 0.95 > open_metrics["spin_alignment_final"]
+    assert mpc_metrics["wy_final"] > 1.0  # from -0.9 rad/s: turned to +y, the reference's sign
+    # solves: every re-plan (80 in 8 s) produced an executable plan
+    ok = mpc.extras["mpc_solve_ok"][np.isfinite(mpc.extras["mpc_solve_ok"])]
+    assert len(ok) == 80 and np.all(ok == 1.0)
+
+
+def test_final_spin_rate_is_angular_momentum_over_inertia(spin) -> None:
+    """w_y = |H| cos(theta) / Iyy: the final inertia, not the reference, sets 1.28 rad/s."""
+    _, metrics = spin["mpc"]
+    expected = metrics["wy_from_momentum"] * metrics["spin_alignment_final"]
+    assert metrics["wy_final"] == pytest.approx(expected, rel=0.02)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="paper-faithful MPC (N = 50 x 10 ms, Table I weights, correct gyroscopic sign, "
+    "hardware limits) turns H into body y slower than the paper reports: splitter_mpc.core.mpc",
+)
+def test_spin_stabilization_meets_the_papers_figures(spin) -> None:
+    _, metrics = spin["mpc"]
+    assert metrics["residual_wx"] < 0.01 and metrics["residual_wz"] < 0.01
+    assert metrics["spin_alignment_final"] >= 0.99
+    assert metrics["settling_time_s"] <= 3.0
+
+
+def test_quaternion_tracking_needs_a_wider_inertia_range(orientation) -> None:
+    """Paper section VII.A.2: 'quaternion tracking requires a broader range of inertia'."""
+    quaternion, q_metrics = orientation["quaternion_tracking"]
+    velocity, v_metrics = orientation["velocity_only"]
+    assert q_metrics["radii_range_m"] > 2.0 * v_metrics["radii_range_m"]
+    for series in (quaternion, velocity):
+        assert np.all(np.isfinite(series.angular_velocity_rad_s))
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the reference turns +1 rad/s about body y while the body turns at w_y = -0.5 "
+    "with H 45 deg off the reference axis: no inertia can follow it; splitter_mpc.core.mpc",
+)
+def test_quaternion_tracking_reduces_the_final_attitude_error(orientation) -> None:
+    _, q_metrics = orientation["quaternion_tracking"]
+    _, v_metrics = orientation["velocity_only"]
+    assert q_metrics["attitude_error_final_deg"] < v_metrics["attitude_error_final_deg"]
+
+
+def test_solver_failures_mid_run_are_survived() -> None:
+    failures = (1.0, 1.1, 1.2)  # [s] three re-plans in a row
+    series, _ = run("spin_stabilization", "mpc", fail_solves_at_s=failures, duration_s=2.0)
+    reference, _ = run("spin_stabilization", "mpc", duration_s=2.0)
+    ok = series.extras["mpc_solve_ok"]
+    replans = np.isfinite(ok)
+    failed_at = np.round(series.t_s[replans & (ok == 0.0)], 3)
+    assert failed_at.tolist() == list(failures)
+    assert np.all(ok[replans & (series.t_s > 1.25)] == 1.0)  # recovered at the next re-plan
+    assert np.all(np.isfinite(series.inertia_setpoint_kg_m2))
+    before = series.t_s < 1.0
+    np.testing.assert_array_equal(
+        series.inertia_setpoint_kg_m2[before], reference.inertia_setpoint_kg_m2[before]
+    )
+    # 300 ms on the previous plan's tail changed the flight (the failures were real) ...
+    assert np.max(np.abs(series.angular_velocity_rad_s - reference.angular_velocity_rad_s)) > 0
+    # ... and the body still obeys physics: |H| conserved, radii within reach
+    h = np.linalg.norm(series.extras["angular_momentum_world"], axis=1)
+    assert np.max(np.abs(h - h[0])) < 1e-3 * h[0]
+    assert np.all(series.radii_m <= MODEL.radii_max_m + 1e-6)
