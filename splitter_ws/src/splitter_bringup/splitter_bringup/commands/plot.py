@@ -1,0 +1,131 @@
+"""``splitter plot BAG --out PNGDIR``: the paper's figures from a recorded bag.
+
+The bag is read into a :class:`RunSeries` (:mod:`splitter_bringup.core.bag_series`);
+the flight figure (angular velocity, radii, inertia against its setpoint, Euler
+angles) and the quaternion map come from :mod:`splitter_bringup.core.plots`, the
+same code ``splitter run`` uses. The trajectory and velocity figure (paper
+Fig. 12, lunar jumping) is drawn here, from the series' own arrays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from splitter_bringup.core.series import RunSeries
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap)")
+    parser.add_argument("--out", type=Path, required=True, help="directory for the PNG files")
+    parser.add_argument(
+        "--gravity",
+        type=float,
+        default=None,
+        help="gravity [m/s^2] (default: the bag's custom_data, else 0)",
+    )
+    parser.add_argument("--title", default="", help="figure title (default: the bag's name)")
+    parser.add_argument("--npz", action="store_true", help="also save the series as .npz")
+
+
+def trajectory_summary(series: RunSeries) -> dict[str, float]:
+    """Numbers printed with the trajectory figure: peak speeds and travelled distance."""
+    v = series.velocity_m_s
+    p = series.position_m
+    return {
+        "duration_s": float(series.t_s[-1] - series.t_s[0]),
+        "peak_horizontal_speed_m_s": float(np.max(np.hypot(v[:, 0], v[:, 1]))),
+        "peak_v_x_m_s": float(np.max(v[:, 0])),
+        "peak_height_m": float(np.max(p[:, 2])),
+        "horizontal_distance_m": float(np.hypot(*(p[-1, :2] - p[0, :2]))),
+    }
+
+
+def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
+    """Centre-of-mass path (x-z and x-y) and world velocity, with the jump force if recorded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = series.t_s
+    p = series.position_m
+    v = series.velocity_m_s
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    ax = axes[0, 0]
+    ax.plot(p[:, 0], p[:, 2])
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_title("trajectory (side view)")
+    ax.grid(True, alpha=0.3)
+    ax = axes[0, 1]
+    ax.plot(p[:, 0], p[:, 1])
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("trajectory (top view)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax = axes[1, 0]
+    for i, name in enumerate("xyz"):
+        ax.plot(t, v[:, i], label=f"$v_{name}$")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("velocity (world) [m/s]")
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+    ax = axes[1, 1]
+    if series.jump_force_n is not None:
+        for i, name in enumerate("xyz"):
+            ax.plot(t, series.jump_force_n[:, i], label=f"$F_{name}$")
+        ax.set_ylabel("jump thrust (world) [N]")
+        ax.legend(loc="best")
+    else:
+        ax.plot(t, p[:, 2])
+        ax.set_ylabel("height z [m]")
+    if series.gait_phase:
+        changes = [i for i in range(1, len(t)) if series.gait_phase[i] != series.gait_phase[i - 1]]
+        for i in changes:
+            ax.axvline(t[i], color="grey", alpha=0.4)
+            ax.text(t[i], ax.get_ylim()[1], series.gait_phase[i], rotation=90, fontsize=7, va="top")
+    ax.set_xlabel("t [s]")
+    ax.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(args: argparse.Namespace) -> int:
+    from splitter_bringup.core.bag_series import BagSeriesError, read_run_series
+    from splitter_bringup.core.plots import plot_flight, plot_quaternion_map
+    from splitter_msgs_py.bag.metadata import MetadataError
+
+    try:
+        series = read_run_series(args.bag, gravity_m_s2=args.gravity)
+    except (BagSeriesError, MetadataError, FileNotFoundError) as exc:
+        print(f"splitter plot: {exc}", file=sys.stderr)
+        return 1
+    title = args.title or args.bag.resolve().name
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    written = [
+        plot_flight(series, out / "flight.png", title),
+        plot_quaternion_map(series, out / "quaternion.png", title),
+        plot_trajectory(series, out / "trajectory.png", title),
+    ]
+    if args.npz:
+        series.save_npz(out / "series.npz")
+    w_end = series.angular_velocity_rad_s[-1]
+    summary = {
+        "samples": len(series),
+        "final_angular_velocity_rad_s": [float(x) for x in w_end],
+        **trajectory_summary(series),
+        "figures": [str(p) for p in written],
+    }
+    print(json.dumps(summary, indent=2))
+    return 0

@@ -1,0 +1,255 @@
+"""A recorded bag read back into a :class:`RunSeries` (the same container the library loop fills).
+
+Alignment is pure numpy (:func:`common_stamps`, :func:`values_at`,
+:func:`forward_fill`); :func:`read_run_series` decodes the bag with
+``rclpy.serialization`` and :mod:`splitter_msgs_py.conversions`, imported when
+called so that this module stays importable without ROS.
+
+* State topics (IMU, odometry, inertia, joint states; 200 Hz) are aligned on
+  their ``header.stamp``: a sample exists at every stamp all four carry.
+* Inertia setpoints (100 Hz) and the jump command are forward-filled onto those
+  stamps (the latest one stamped at or before; the first back-fills the start;
+  without any setpoint the measured inertia stands in, as in the library loop's
+  open-loop runs); the gait phase (latched, unstamped) by log time.
+* Radii come from the measured joint positions
+  (:func:`splitter_sim.core.kinematics.radii_from_joint_positions`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_bringup.core.series import RunSeries
+from splitter_msgs_py import names
+from splitter_sim.core.kinematics import radii_from_joint_positions
+from splitter_sim.core.model import RobotModel
+
+_log = logging.getLogger(__name__)
+_NS_PER_S = 1_000_000_000
+STATE_TOPICS = (names.IMU, names.ODOM, names.INERTIA, names.JOINT_STATES)
+GRAVITY_KEY = "gravity_m_s2"  # custom_data key a launcher may store in the bag
+
+
+class BagSeriesError(ValueError):
+    """A bag that cannot make a run series (missing topics, no common stamps, bad messages)."""
+
+
+# --- pure alignment ---------------------------------------------------------------------
+def common_stamps(*stamps_ns: ArrayLike) -> NDArray[np.int64]:
+    """Sorted stamps present in every array."""
+    if not stamps_ns:
+        return np.zeros(0, dtype=np.int64)
+    common = np.unique(np.asarray(stamps_ns[0], dtype=np.int64))
+    for s in stamps_ns[1:]:
+        common = np.intersect1d(common, np.asarray(s, dtype=np.int64), assume_unique=False)
+    return common
+
+
+def values_at(stamps_ns: ArrayLike, values: ArrayLike, grid_ns: ArrayLike) -> NDArray[Any]:
+    """``values`` at exactly the ``grid_ns`` stamps (each must be present; last duplicate wins)."""
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    vals = np.asarray(values)
+    grid = np.asarray(grid_ns, dtype=np.int64)
+    # Last occurrence of each stamp: search in the reversed, stably sorted order.
+    order = np.argsort(stamps, kind="stable")
+    s_sorted = stamps[order]
+    idx = np.searchsorted(s_sorted, grid, side="right") - 1
+    if len(grid) and (np.any(idx < 0) or np.any(s_sorted[np.clip(idx, 0, None)] != grid)):
+        raise BagSeriesError("values_at: a grid stamp has no sample")
+    return vals[order[idx]]
+
+
+def forward_fill(
+    stamps_ns: ArrayLike, values: ArrayLike, grid_ns: ArrayLike, backfill: bool = True
+) -> NDArray[Any]:
+    """For each grid stamp, the latest value stamped at or before it.
+
+    Before the first stamp the first value is used when ``backfill``; otherwise
+    those rows are NaN (float values only).
+    """
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    vals = np.asarray(values)
+    grid = np.asarray(grid_ns, dtype=np.int64)
+    if len(stamps) == 0:
+        raise BagSeriesError("forward_fill: no samples")
+    order = np.argsort(stamps, kind="stable")
+    idx = np.searchsorted(stamps[order], grid, side="right") - 1
+    before = idx < 0
+    out = vals[order[np.clip(idx, 0, None)]]
+    if np.any(before) and not backfill:
+        out = out.astype(float)
+        out[before] = np.nan
+    return out
+
+
+def forward_fill_labels(
+    stamps_ns: Sequence[int], labels: Sequence[str], grid_ns: ArrayLike, before: str = ""
+) -> list[str]:
+    """Forward-filled strings; ``before`` ahead of the first label."""
+    if not labels:
+        return [before] * len(np.asarray(grid_ns))
+    idx = np.searchsorted(np.asarray(stamps_ns, dtype=np.int64), grid_ns, side="right") - 1
+    return [labels[i] if i >= 0 else before for i in idx]
+
+
+def radii_series(model: RobotModel, joint_positions: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(n, 3) effective radii [m] from (n, 25) joint positions."""
+    return np.array([radii_from_joint_positions(model, q) for q in joint_positions]).reshape(-1, 3)
+
+
+# --- decoding -----------------------------------------------------------------------------
+@dataclass
+class TopicSamples:
+    """Decoded samples of one topic: stamp [ns] (header, else log time) and fields."""
+
+    stamps_ns: list[int] = field(default_factory=list)
+    fields: dict[str, list[Any]] = field(default_factory=dict)
+
+    def add(self, t_ns: int, **values: Any) -> None:
+        self.stamps_ns.append(int(t_ns))
+        for key, value in values.items():
+            self.fields.setdefault(key, []).append(value)
+
+    def array(self, key: str) -> NDArray[np.float64]:
+        return np.asarray(self.fields[key], dtype=float)
+
+
+def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
+    from splitter_msgs_py import conversions as cv
+
+    def imu(msg: Any, _: int, out: TopicSamples) -> None:
+        s = cv.imu_from_msg(msg)
+        out.add(s.t_ns, w=s.angular_velocity_rad_s, q=s.orientation_wxyz)
+
+    def odom(msg: Any, _: int, out: TopicSamples) -> None:
+        s = cv.odom_from_msg(msg)
+        out.add(s.t_ns, p=s.position_m, q=s.orientation_wxyz, v=s.velocity_world_m_s)
+
+    def vector(msg: Any, _: int, out: TopicSamples) -> None:
+        s = cv.vector3_from_msg(msg)
+        out.add(s.t_ns, v=s.vector)
+
+    def joints(msg: Any, _: int, out: TopicSamples) -> None:
+        s = cv.joint_state_from_msg(msg)
+        out.add(s.t_ns, q=s.position)
+
+    def phase(msg: Any, log_ns: int, out: TopicSamples) -> None:
+        out.add(log_ns, phase=str(msg.data))
+
+    def jump(msg: Any, _: int, out: TopicSamples) -> None:
+        s = cv.wrench_from_msg(msg)
+        out.add(s.t_ns, f=s.force_n)
+
+    return {
+        names.IMU: imu,
+        names.ODOM: odom,
+        names.INERTIA: vector,
+        names.JOINT_STATES: joints,
+        names.INERTIA_SETPOINT: vector,
+        names.GAIT_PHASE: phase,
+        names.JUMP_COMMAND: jump,
+    }
+
+
+def decode_bag(bag_dir: Path | str) -> dict[str, TopicSamples]:
+    """Every message of the topics a run series needs, decoded and validated."""
+    from rclpy.serialization import deserialize_message
+
+    from splitter_msgs_py.bag.reader import read_messages
+    from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
+
+    decoders = _decoders()
+    out: dict[str, TopicSamples] = {topic: TopicSamples() for topic in decoders}
+    for m in read_messages(bag_dir, topics=list(decoders)):
+        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[m.topic])
+        try:
+            decoders[m.topic](msg, m.log_time_ns, out[m.topic])
+        except ValueError as exc:
+            raise BagSeriesError(
+                f"{bag_dir}: {m.topic} at log time {m.log_time_ns} ns: {exc}"
+            ) from exc
+    return out
+
+
+def series_from_samples(
+    samples: dict[str, TopicSamples],
+    model: RobotModel | None = None,
+    gravity_m_s2: float = 0.0,
+) -> RunSeries:
+    """Align decoded topics into a :class:`RunSeries` (see the module doc)."""
+    model = model or RobotModel()
+    missing = [t for t in STATE_TOPICS if not samples.get(t) or not samples[t].stamps_ns]
+    if missing:
+        raise BagSeriesError(f"the bag has no messages on {', '.join(missing)}")
+    grid = common_stamps(*(samples[t].stamps_ns for t in STATE_TOPICS))
+    if len(grid) == 0:
+        raise BagSeriesError("the state topics share no header stamp")
+    for t in STATE_TOPICS:
+        dropped = len(set(samples[t].stamps_ns)) - len(grid)
+        if dropped:
+            _log.warning("%s: %d stamps not on all state topics, left out", t, dropped)
+
+    def at(topic: str, key: str) -> NDArray[np.float64]:
+        s = samples[topic]
+        return values_at(s.stamps_ns, s.array(key), grid).astype(float)
+
+    inertia = at(names.INERTIA, "v")
+    setpoints = samples.get(names.INERTIA_SETPOINT)
+    if setpoints is not None and setpoints.stamps_ns:
+        setpoint = forward_fill(setpoints.stamps_ns, setpoints.array("v"), grid).astype(float)
+    else:
+        _log.info("no inertia setpoints in the bag: the measured inertia stands in")
+        setpoint = inertia.copy()
+    joints = at(names.JOINT_STATES, "q")
+    phase = samples.get(names.GAIT_PHASE)
+    phases = (
+        forward_fill_labels(phase.stamps_ns, phase.fields.get("phase", []), grid)
+        if phase is not None and phase.stamps_ns
+        else []
+    )
+    jump = samples.get(names.JUMP_COMMAND)
+    jump_force = None
+    if jump is not None and jump.stamps_ns:
+        jump_force = forward_fill(jump.stamps_ns, jump.array("f"), grid, backfill=False)
+        jump_force = np.nan_to_num(jump_force.astype(float), nan=0.0)  # no thrust before
+    return RunSeries(
+        t_s=grid.astype(float) / _NS_PER_S,
+        angular_velocity_rad_s=at(names.IMU, "w"),
+        orientation_wxyz=at(names.ODOM, "q"),
+        principal_inertia_kg_m2=inertia,
+        inertia_setpoint_kg_m2=setpoint,
+        radii_m=radii_series(model, joints),
+        position_m=at(names.ODOM, "p"),
+        velocity_m_s=at(names.ODOM, "v"),
+        joint_position=joints,
+        gravity_m_s2=float(gravity_m_s2),
+        gait_phase=phases,
+        jump_force_n=jump_force,
+    )
+
+
+def read_run_series(
+    bag_dir: Path | str,
+    gravity_m_s2: float | None = None,
+    model: RobotModel | None = None,
+) -> RunSeries:
+    """The run recorded in ``bag_dir``.
+
+    ``gravity_m_s2`` defaults to the bag's ``custom_data['gravity_m_s2']``, else 0.
+    """
+    from splitter_msgs_py.bag.metadata import read_metadata
+
+    if gravity_m_s2 is None:
+        custom = read_metadata(bag_dir).custom_data
+        try:
+            gravity_m_s2 = float(custom.get(GRAVITY_KEY, 0.0))
+        except ValueError as exc:
+            raise BagSeriesError(f"custom_data {GRAVITY_KEY}: {exc}") from exc
+    return series_from_samples(decode_bag(bag_dir), model, gravity_m_s2)
