@@ -1,10 +1,52 @@
 """The inertial-morphing MPC: the OCP of :mod:`.ocp` built once, solved warm.
 
 :class:`InertialMorphingMpc` owns one back-end (:mod:`.solvers`), built once with
-every changing number a parameter (references, weights) or a bound (measured
-state, radius-rate limits), and the primal-dual solution of the last solve,
-which it shifts by the elapsed number of prediction steps to warm-start the
-next one (the tail is rolled out with zero control). ROS-free.
+every changing number a parameter (references, weights, nominal inertia) or a
+bound (measured state, radius-rate limits), and the primal-dual solution of the
+last solve, which it shifts by the elapsed number of prediction steps to
+warm-start the next one (the tail is rolled out with zero control). ROS-free.
+
+Results against the paper (``splitter run spin_stabilization``, library loop with
+the simulator, the allocator and the gait machine; paper Table I settings)
+-------------------------------------------------------------------------------
+Faithful to section VI (N = 50 x 10 ms, Table I weights, re-plan every 100 ms)
+but with the correct gyroscopic sign and the real hardware limits, the MPC turns
+the tumble into a spin about +y (from w_y = -0.9 rad/s) and conserves |H| to
+1e-6, but more slowly than the paper reports: residual |w_x|, |w_z| about 0.11
+and 0.28 rad/s at 8 s (paper 0.004 / 0.006), time constant 3.9 s (1.3 s),
+w_y = 1.07 rad/s (1.28). Why, found by experiment on this problem:
+
+* w_y is not set by the reference: H is conserved, so a final spin about y is
+  ``w_y = |H| / Iyy`` (|H| = 179.9 kg m^2/s). The reference w_y = 1 asks for
+  Iyy = 180, beyond reach, so the MPC drives r_x to its 3.0 m limit (Iyy = 162.9,
+  w_y = 1.10). The paper's 1.28 rad/s with "equal energy at t = 0 and 8 s" is
+  exactly ``|H| / Iyy(0)``: its inertia ended where it started, i.e. its I_max
+  was the initial configuration (r_x = 2.8 m).
+* Speed: the body is axisymmetric about x (Iyy = Izz), the spin must turn 135 deg
+  about x, and what turns it is ``w_x = H_x / Ixx``, built by the asymmetry
+  ``Iyy - Izz``, itself bounded by ``Ixx`` (a triangle inequality of eq. 2). The
+  paper's J_w penalises that w_x, and over a 0.5 s horizon lowering |w| by
+  inflating the inertia (w = H / I) always pays more than turning H: the MPC
+  inflates Ixx, which slows the turn. No choice of solver changes this (IPOPT,
+  fatrop and the plain Opti baseline give the same closed loop), nor do the
+  paper's box-only bounds or an I_max at the initial radii. A 4x longer horizon
+  (50 x 40 ms, prototype) turns the spin as fast as the paper (63 % of w_y at
+  1.3 s) but leaves 0.02-0.03 rad/s. With the paper's printed + sign in the MPC
+  model (and a correct plant) a prototype settles in ~2 s with |w_x| = 0.004, but
+  about -y (w_y = -1.27, against the reference) and through inertias that violate
+  the triangle inequality (Izz down to 110 kg m^2 with Iyy = 141, Ixx = 1.6).
+* Project options beyond the paper (off by default, see ``MpcWeights``):
+  ``tracking = "angular_momentum"`` (J_w on ``I w / I_nom``) and ``q_i`` (back to
+  the nominal configuration). With q_i = (1, 100, 100) they reach residuals of
+  0.003 / 0.014 rad/s and 4 s settling, but the tether stays reeled in
+  (w_y = 2.2 rad/s, 1.3 G) and warm starts can stick in worse local optima.
+
+Orientation tracking (Table II): the reference ``q0 (x) exp(w_ref t / 2)`` turns
+at +1 rad/s about body y from the initial attitude while the body starts with
+w_y = -0.5 rad/s and H 45 deg away from the reference axis, so no inertia
+history can follow it: the attitude error exceeds 90 deg within 1.5 s with or
+without quaternion tracking. Quaternion tracking does use a wider inertia range
+(radii range 0.88 m against 0.20 m), the paper's finding.
 """
 
 from __future__ import annotations
