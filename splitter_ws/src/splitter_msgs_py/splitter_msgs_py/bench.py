@@ -36,7 +36,7 @@ from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 
 _NS_PER_S = 1_000_000_000
 SIM_STEP_NS = 5_000_000  # [ns] DESIGN.md section 7
-DEFAULT_RATES = (2_000, 5_000, 10_000, 20_000, 30_000, 40_000)  # [msg/s] graph-path stages
+DEFAULT_RATES = (2_000, 5_000, 10_000, 20_000, 30_000, 40_000, 60_000)  # [msg/s] graph-path stages
 
 
 def graph_mix(n_steps: int = 200) -> list[tuple[str, str, bytes, int]]:
