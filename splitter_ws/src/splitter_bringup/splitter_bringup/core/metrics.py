@@ -180,6 +180,12 @@ def flight_summary(
             "deg",
             f"angle to the attitude reference, {window}",
         ),
+        "max_horizontal_speed_m_s": Metric(
+            float(np.max(np.linalg.norm(series.velocity_m_s[:, :2], axis=1))),
+            "m/s",
+            "largest horizontal speed of the centre of mass (jumping flight)",
+            paper.get("horizontal_speed_mps"),
+        ),
         "radii_range_m": Metric(
             float(np.max(np.ptp(series.radii_m, axis=0))), "m", "largest range of r_x, r_y, r_z"
         ),
