@@ -40,7 +40,6 @@ from splitter_msgs_py.conversions import (
     diagnostics_to_msg,
     imu_from_msg,
     pose_from_msg,
-    stamp_from_msg,
     twist_from_msg,
     vector3_from_msg,
     vector3_to_msg,
@@ -321,11 +320,6 @@ class InertialMorphingMpcNode(Node):
             self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [status]))
         except MessageValidationError as exc:
             self.get_logger().error(f"diagnostics not published: {exc}")
-
-
-def stamp_of(msg) -> int:
-    """Stamp [ns] of a stamped message (for logs)."""
-    return stamp_from_msg(msg.header.stamp)
 
 
 def main(args: list[str] | None = None) -> int:

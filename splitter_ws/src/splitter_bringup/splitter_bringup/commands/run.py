@@ -22,7 +22,7 @@ from pathlib import Path
 from splitter_bringup.core.scenario import ScenarioError, available_scenarios, load_scenario
 from splitter_bringup.core.series import RunSeries
 
-SOLVER_CHOICES = ("sqp", "rti", "ipopt", "fatrop")
+SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--solver", choices=SOLVER_CHOICES, default=None, help="MPC solver (library backend)"
+    )
+    parser.add_argument(
+        "--no-compile", action="store_true", help="MPC without compiled code (library backend)"
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 
@@ -65,9 +68,13 @@ def _run_variant(args: argparse.Namespace, scenario_name: str, variant: str) -> 
         return run_graph(scenario_name, variant, args.out)
     from splitter_bringup.core.closed_loop import run_closed_loop
     from splitter_mpc.core.mpc import MpcSettings
+    from splitter_mpc.core.solvers import SolverOptions
 
     scenario = load_scenario(scenario_name, variant)
-    mpc = MpcSettings(solver=args.solver) if args.solver else None
+    mpc = MpcSettings(
+        solver=args.solver or MpcSettings().solver,
+        options=SolverOptions(compile=not args.no_compile),
+    )
     return run_closed_loop(scenario, _progress_printer(variant), mpc=mpc)
 
 
