@@ -119,3 +119,14 @@ def test_config_rejects_inconsistent_periods() -> None:
         ControllerConfig(replan_period_s=0.015)
     with pytest.raises(ValueError, match="nominal"):
         ControllerConfig(nominal_inertia_kg_m2=(1.0, -1.0, 1.0))
+
+
+def test_a_late_solve_is_not_executed() -> None:
+    late_mpc = InertialMorphingMpc(
+        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=1e-6))
+    )
+    ctl = MorphingController(MODEL, ControllerConfig(), late_mpc)
+    ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
+    np.testing.assert_allclose(tick(ctl, 0), I0)  # no plan: hold the measured inertia
+    assert ctl.status.solve_status.startswith("late") and not ctl.status.solve_ok
+    assert ctl.plan is None and ctl.status.failures == 1

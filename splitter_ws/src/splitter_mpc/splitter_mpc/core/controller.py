@@ -9,10 +9,11 @@ for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
   the MPC"), once an attitude reference has been set. Inactive, or disabled
   (open loop), it holds the nominal inertia: the configured one, else the first
   inertia it measured.
-* A failed solve (solver error, non-finite or infeasible result, injected
-  failure) keeps the previous plan: its later steps are played back on the
-  following ticks, the failure is counted and reported, and the next re-plan
-  tries again. Without any plan it holds the measured inertia.
+* A failed or late solve (solver error, non-finite or infeasible result, wall
+  time above ``SolverOptions.max_time_s``, injected failure) keeps the previous
+  plan: its later steps are played back on the following ticks, the failure is
+  counted and reported, and the next re-plan tries again. Without any plan it
+  holds the measured inertia.
 * It never returns a non-finite setpoint.
 
 ROS-free and deterministic (the solvers are deterministic; a wall-time cap that
@@ -244,6 +245,12 @@ class MorphingController:
             )
             result = plan.result
             status, ok = result.status, result.usable
+            late_s = self.mpc.settings.options.max_time_s
+            if ok and result.solve_time_s > late_s:  # fatrop has no wall-time cap of its own
+                status, ok = (
+                    f"late ({result.solve_time_s * 1e3:.0f} ms > {late_s * 1e3:.0f})",
+                    False,
+                )
             if self._failures_to_inject > 0:
                 self._failures_to_inject -= 1
                 status, ok = "injected_failure", False
