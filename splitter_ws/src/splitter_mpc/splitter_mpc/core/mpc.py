@@ -199,8 +199,8 @@ class InertialMorphingMpc:
         times; ``nominal_inertia_kg_m2`` (default: the measured one) is the I_nom of
         the weights' momentum tracking and nominal-configuration terms. The plan is
         returned whatever the solver's status; check ``plan.result.usable`` before
-        executing it. The warm start is updated
-        only by usable solutions.
+        executing it. The warm start is updated by usable solutions (and by every
+        finite sqp/rti iterate).
         """
         measured = np.asarray(state, dtype=float).reshape(NX)
         x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
@@ -225,8 +225,8 @@ class InertialMorphingMpc:
         )
         result = self.backend.solve(data)
         xs, _ = self.ocp.split(result.z)
-        if result.usable:
-            self._last = (int(t_ns), result)
+        if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
+            self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
         return MpcPlan(
             t_ns=int(t_ns),
             dt_ns=self.settings.dt_ns,

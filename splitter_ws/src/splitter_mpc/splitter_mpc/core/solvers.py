@@ -50,13 +50,15 @@ class SolverOptions:
     max_time_s: float = 0.08  # [s] wall time per solve
     tol: float = 1e-8  # optimality (interior point) / step size (SQP, scaled)
     usable_infeasibility: float = 1e-4  # largest constraint violation of an executable plan
+    # sqp/rti iterates carry the linearisation error of the dynamics (RTI's premise):
+    rti_usable_infeasibility: float = 1e-2
     compile: bool = True  # compile the derivative code with gcc (cached on disk)
     cache_dir: Path | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be an int >= 1, got {self.max_iter!r}")
-        for name in ("max_time_s", "tol", "usable_infeasibility"):
+        for name in ("max_time_s", "tol", "usable_infeasibility", "rti_usable_infeasibility"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
@@ -297,11 +299,12 @@ class SqpBackend:
         elif self.name == "rti" and not converged and status == "max_iter":
             status = "rti_step"
         # An unconverged but feasible iterate is an RTI-grade plan: executable.
-        usable = (
-            finite
-            and violation <= self.options.usable_infeasibility
-            and not status.startswith("qp_failed")
+        limit = (
+            self.options.usable_infeasibility
+            if converged
+            else self.options.rti_usable_infeasibility
         )
+        usable = finite and violation <= limit and not status.startswith("qp_failed")
         return SolverResult(
             z=z,
             lam_g=lam,
