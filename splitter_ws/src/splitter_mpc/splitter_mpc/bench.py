@@ -67,7 +67,11 @@ def run_benchmark(
 
     scenario = load_scenario(scenario_name)
     model = RobotModel()
-    settings = MpcSettings(solver=solver, options=SolverOptions(compile=compile_code))
+    # No wall-time cap (lockstep): a late solve would be discarded by the controller,
+    # and the two closed loops would no longer compare solutions to the same problems.
+    settings = MpcSettings(
+        solver=solver, options=SolverOptions(compile=compile_code, max_time_s=60.0)
+    )
     config = controller_config(scenario, settings)
     print(f"building {solver} (first start compiles, then cached) ...", file=sys.stderr)
     started = time.monotonic()
