@@ -22,7 +22,7 @@ from splitter_sim.core.model import RobotModel
 pytestmark = pytest.mark.slow
 MODEL = RobotModel()
 # SX virtual machine: no compiler and no cache needed; the same solutions.
-MPC = MpcSettings(options=SolverOptions(compile=False))
+MPC = MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))  # lockstep: no deadline
 
 
 def run(name: str, variant: str, **kwargs):

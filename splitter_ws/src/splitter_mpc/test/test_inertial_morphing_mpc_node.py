@@ -38,7 +38,10 @@ I0 = principal_inertia(RobotModel(), PAPER_INITIAL_RADII_M)
 W0 = np.array([-0.3, -0.9, 0.9])  # [rad/s]
 Q0 = np.array([1.0, 0.0, 0.0, 0.0])
 CONFIG_FILE = Path(__file__).resolve().parents[1] / "config" / "inertial_morphing_mpc.yaml"
-FAST = [Parameter("compile", value=False)]  # SX VM: no compiler or cache in tests
+FAST = [  # SX VM: no compiler or cache in tests; no wall-time deadline under CI load
+    Parameter("compile", value=False),
+    Parameter("max_solve_time_s", value=10.0),
+]
 
 
 class FakeGraph:

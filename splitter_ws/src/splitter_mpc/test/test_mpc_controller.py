@@ -19,7 +19,10 @@ Q0 = np.array([1.0, 0.0, 0.0, 0.0])
 
 @pytest.fixture(scope="module")
 def mpc() -> InertialMorphingMpc:
-    return InertialMorphingMpc(MODEL, MpcSettings(options=SolverOptions(compile=False)))
+    # no wall-time deadline: a loaded CI machine must not turn solves late
+    return InertialMorphingMpc(
+        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))
+    )
 
 
 def controller(mpc: InertialMorphingMpc, **config) -> MorphingController:

@@ -28,7 +28,9 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 @pytest.fixture(scope="module")
 def mpc() -> InertialMorphingMpc:
-    return InertialMorphingMpc(MODEL, MpcSettings(options=SolverOptions(compile=False)))
+    return InertialMorphingMpc(
+        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))
+    )
 
 
 def test_squared_radii_are_linear_in_the_principal_moments() -> None:
