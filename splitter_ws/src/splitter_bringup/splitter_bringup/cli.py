@@ -26,6 +26,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
     "bench": ("splitter_bringup.commands.bench", "benchmarks that print figures (sim, mpc, bag)"),
     "bag": ("splitter_msgs_py.bag_cli", "bag tools: info, recover, play, record"),
     "plot": ("splitter_bringup.commands.plot", "plot a recorded bag as the paper's figures"),
+    "replay": (
+        "splitter_bringup.commands.replay",
+        "re-run the MPC on a recorded bag's inputs and compare its setpoints",
+    ),
     "actuator": ("splitter_ik.actuator_cli", "actuator sizing against the paper's numbers"),
 }
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import re
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,8 @@ from splitter_bringup.core.scenario import Scenario
 from splitter_msgs_py.environment import ros_environment
 
 LOG = logging.getLogger(__name__)
+# [s] after the simulator's last step, time for the recorder to receive what is in flight
+DRAIN_S = 1.5
 _PROGRESS = re.compile(r"t = ([0-9.]+) s")
 
 
@@ -85,6 +88,8 @@ def launch(
                 )
             )
         outcome, code = supervisor.wait(timeout_s=timeout_s)
+        if outcome == "ended":
+            time.sleep(DRAIN_S)
         if outcome.startswith("died:"):
             LOG.error("%s exited with code %s: stopping the graph", outcome[5:], code)
         elif outcome == "timeout":

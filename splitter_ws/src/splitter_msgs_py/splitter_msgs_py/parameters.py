@@ -18,7 +18,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 
-ParameterValue = bool | int | float | str | list[float]
+ParameterValue = bool | int | float | str | list[float] | list[str]
 
 
 class InvalidParameterError(ValueError):
@@ -27,7 +27,11 @@ class InvalidParameterError(ValueError):
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """One node parameter: the default's type decides the ROS type."""
+    """One node parameter: the default's type decides the ROS type.
+
+    A list default is a float array, or a string array with ``item_type=str``
+    (needed because an empty default says nothing about its items).
+    """
 
     name: str
     default: ParameterValue
@@ -35,7 +39,8 @@ class ParameterSpec:
     min_value: float | None = None
     max_value: float | None = None
     choices: tuple[str, ...] | None = None
-    length: int | None = None  # fixed size of a float array
+    length: int | None = None  # fixed size of an array
+    item_type: type = float  # float or str, for list defaults
 
     def descriptor(self) -> ParameterDescriptor:
         """The ROS descriptor advertising description and range."""
@@ -79,6 +84,12 @@ class ParameterSpec:
             if self.choices and value not in self.choices:
                 raise InvalidParameterError(f"{where} must be one of {self.choices}, got {value!r}")
             return value
+        if isinstance(self.default, list) and self.item_type is str:
+            if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+                raise InvalidParameterError(f"{where} must be a list of strings, got {value!r}")
+            if self.choices and any(v not in self.choices for v in value):
+                raise InvalidParameterError(f"{where} items must be in {self.choices}")
+            return list(value)
         if isinstance(self.default, list):
             try:
                 values = [float(v) for v in value]  # type: ignore[union-attr]

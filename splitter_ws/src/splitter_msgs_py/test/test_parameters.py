@@ -97,3 +97,18 @@ def test_empty_list_from_a_parameter_file(ros_context, tmp_path) -> None:
         assert values["jump_times_s"] == []
     finally:
         node.destroy_node()
+
+
+def test_string_arrays(ros_context) -> None:
+    spec = ParameterSpec("wait_for", [], "node names", item_type=str)
+    node = make_node(ros_context, [Parameter("wait_for", value=["recorder", "mpc"])])
+    try:
+        assert declare_parameters(node, [spec])["wait_for"] == ["recorder", "mpc"]
+    finally:
+        node.destroy_node()
+    node = make_node(ros_context, [Parameter("wait_for", value=[1.0])])
+    try:
+        with pytest.raises(InvalidParameterError, match="'wait_for'"):
+            declare_parameters(node, [spec])
+    finally:
+        node.destroy_node()

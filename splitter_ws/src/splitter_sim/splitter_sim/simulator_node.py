@@ -122,6 +122,26 @@ PARAMETERS = (
         max_value=600.0,
     ),
     ParameterSpec(
+        "startup_wait_for_nodes",
+        [],
+        "nodes that must be in the graph before stepping starts (e.g. the controllers)",
+        item_type=str,
+    ),
+    ParameterSpec(
+        "startup_settle_s",
+        0.0,
+        "the start condition must hold this long before stepping: time for the other nodes' "
+        "endpoints to match each other, which this node cannot see [s]",
+        min_value=0.0,
+        max_value=60.0,
+    ),
+    ParameterSpec(
+        "startup_wait_for_subscribers",
+        [],
+        "nodes that must subscribe to every state topic before stepping starts (a recorder)",
+        item_type=str,
+    ),
+    ParameterSpec(
         "duration_s",
         0.0,
         "simulated time after which the node stops stepping (0: never) [s]",
@@ -267,6 +287,10 @@ class SimulatorNode(Node):
         self._rate_factor = float(values["rate_factor"])
         self._timeout_s = float(values["lockstep_timeout_s"])
         self._startup_wait_s = float(values["startup_wait_s"])
+        self._startup_nodes = tuple(values["startup_wait_for_nodes"])
+        self._startup_settle_s = float(values["startup_settle_s"])
+        self._ready_since: float | None = None
+        self._startup_subscribers = tuple(values["startup_wait_for_subscribers"])
         dt_ns = self._sim.config.dt_ns
         self._dt_ns = dt_ns
         self._duration_ns = round(float(values["duration_s"]) * 1e9)
@@ -434,25 +458,55 @@ class SimulatorNode(Node):
 
     # --- stepping ----------------------------------------------------------------------
     def _ready_to_start(self) -> bool:
+        """Stepping starts once the graph is connected (or ``startup_wait_s`` ran out)."""
         waited = time.monotonic() - self._start_wall
         missing = [
             t for t in LOCKSTEP_TOPICS if self._mode == "lockstep" and self.count_publishers(t) == 0
         ]
         unheard = [t for t in STATE_TOPICS if self.count_subscribers(t) == 0]
-        if (missing or unheard) and waited < self._startup_wait_s:
+        present = set(self.get_node_names())
+        absent = [n for n in self._startup_nodes if n not in present]
+        unsubscribed = [
+            f"{n} on {t}"
+            for t in STATE_TOPICS
+            for n in self._startup_subscribers
+            if n not in {i.node_name for i in self.get_subscriptions_info_by_topic(t)}
+        ]
+        # The graph cache learns of a subscription before DDS has matched it with our
+        # writer: also wait until every state publisher has matched every subscriber.
+        unmatched = [
+            pub.topic_name
+            for pub in self._state_publishers()
+            if pub.get_subscription_count() < self.count_subscribers(pub.topic_name)
+        ]
+        waiting = missing or unheard or absent or unsubscribed or unmatched
+        if waiting and waited < self._startup_wait_s:
+            self._ready_since = None
             return False
-        if missing or unheard:
+        if not waiting:
+            now = time.monotonic()
+            self._ready_since = self._ready_since if self._ready_since is not None else now
+            if now - self._ready_since < self._startup_settle_s:
+                return False
+        if waiting:
             self.get_logger().warning(
                 f"starting after {waited:.1f} s without "
                 + ", ".join(
                     [f"a publisher on {t}" for t in missing]
                     + [f"a subscriber on {t}" for t in unheard]
+                    + [f"node {n}" for n in absent]
+                    + [f"subscriber {x}" for x in unsubscribed]
+                    + [f"every DDS match on {t}" for t in unmatched]
                 )
                 + ": topics without a publisher are not waited for"
             )
         self._run_wall_start = time.monotonic()
         self.get_logger().info(f"t = {self._sim.time_ns * 1e-9:.2f} s: stepping starts")
         return True
+
+    def _state_publishers(self) -> list:
+        """The publishers of ``STATE_TOPICS`` and /clock."""
+        return [p for p in self.publishers if p.topic_name in (*STATE_TOPICS, names.CLOCK)]
 
     def _advance(self) -> None:
         """Lockstep driver: publish, wait for the tick's commands, step; never blocks."""

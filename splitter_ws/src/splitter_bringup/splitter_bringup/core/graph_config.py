@@ -36,10 +36,27 @@ def _floats(values) -> list[float]:
     return [float(v) for v in values]
 
 
-def simulator_parameters(scenario: Scenario, real_time: bool, rate_factor: float) -> dict:
-    """Simulator node parameters of a scenario."""
+CONTROLLER_NODES = ("inertial_morphing_mpc", "ik_tether_allocator", "gait_phase_manager")
+STARTUP_WAIT_S = 120.0  # [s] wall: the MPC may compile its solver on a first start
+# [s] wall: lets the nodes' endpoints match each other (e.g. MPC -> recorder) once all
+# are in the graph; the simulator only sees its own matches
+STARTUP_SETTLE_S = 0.5
+
+
+def simulator_parameters(
+    scenario: Scenario, real_time: bool, rate_factor: float, recorder: str | None = None
+) -> dict:
+    """Simulator node parameters of a scenario.
+
+    The simulator starts stepping once the controllers are in the graph and the
+    recorder (if any) subscribes to every state topic, so a run is recorded whole.
+    """
     return {
         "use_sim_time": False,
+        "startup_wait_s": STARTUP_WAIT_S,
+        "startup_wait_for_nodes": list(CONTROLLER_NODES),
+        "startup_wait_for_subscribers": [recorder] if recorder else [],
+        "startup_settle_s": STARTUP_SETTLE_S,
         "mode": "real_time" if real_time else "lockstep",
         "rate_factor": float(rate_factor),
         "duration_s": float(scenario.duration_s),
@@ -132,7 +149,9 @@ def graph_nodes(
             "simulator",
             "splitter_sim.simulator_node:main",
             "splitter_sim.simulator_node:SimulatorNode",
-            simulator_parameters(scenario, real_time, rate_factor),
+            simulator_parameters(
+                scenario, real_time, rate_factor, "recorder" if bag_dir is not None else None
+            ),
         ),
     ]
     return nodes
