@@ -128,6 +128,12 @@ PARAMETERS = (
         item_type=str,
     ),
     ParameterSpec(
+        "startup_wait_for_publishers",
+        [],
+        "topics that must have a publisher before stepping starts (e.g. the MPC's setpoints)",
+        item_type=str,
+    ),
+    ParameterSpec(
         "startup_settle_s",
         0.0,
         "the start condition must hold this long before stepping: time for the other nodes' "
@@ -288,6 +294,7 @@ class SimulatorNode(Node):
         self._timeout_s = float(values["lockstep_timeout_s"])
         self._startup_wait_s = float(values["startup_wait_s"])
         self._startup_nodes = tuple(values["startup_wait_for_nodes"])
+        self._startup_topics = tuple(values["startup_wait_for_publishers"])
         self._startup_settle_s = float(values["startup_settle_s"])
         self._ready_since: float | None = None
         self._startup_subscribers = tuple(values["startup_wait_for_subscribers"])
@@ -463,6 +470,7 @@ class SimulatorNode(Node):
         missing = [
             t for t in LOCKSTEP_TOPICS if self._mode == "lockstep" and self.count_publishers(t) == 0
         ]
+        missing += [t for t in self._startup_topics if self.count_publishers(t) == 0]
         unheard = [t for t in STATE_TOPICS if self.count_subscribers(t) == 0]
         present = set(self.get_node_names())
         absent = [n for n in self._startup_nodes if n not in present]

@@ -1,8 +1,9 @@
 """``splitter run SCENARIO --out DIR``: run a scenario's variants, write summary and plots.
 
-Backends: ``library`` (default; also ``--no-ros``) steps the core objects in the
-lockstep order (:mod:`splitter_bringup.core.closed_loop`); ``graph`` runs the
-node graph (:func:`splitter_bringup.graph_run.run_graph`) and reads its bag back.
+Backends: ``graph`` (default) runs the node graph, one process per node, records
+its bag and reads it back (:func:`splitter_bringup.graph_run.run_graph`);
+``library`` (also ``--no-ros``) steps the same core objects in the lockstep
+order in one process (:mod:`splitter_bringup.core.closed_loop`).
 Either way the same metrics and plots are made from a ``RunSeries``.
 
 Writes ``DIR/summary.json`` (the main variant's figures beside the paper's, and
@@ -35,7 +36,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--variant", action="append", help="variant to run (repeatable; default: all of them)"
     )
     parser.add_argument(
-        "--backend", choices=("library", "graph"), default="library", help="how to run it"
+        "--backend",
+        choices=("graph", "library"),
+        default="graph",
+        help="graph: the node graph, recorded to DIR/<variant>/bag; library: no ROS",
     )
     parser.add_argument(
         "--no-ros", action="store_true", help="same as --backend library (no ROS graph)"
@@ -78,6 +82,23 @@ def _run_variant(args: argparse.Namespace, scenario_name: str, variant: str) -> 
     return run_closed_loop(scenario, _progress_printer(variant), mpc=mpc)
 
 
+def _metrics(series: RunSeries, scenario) -> dict:
+    """Flight figures, and the jumping figures for a scenario with jumps."""
+    from splitter_bringup.core.jump_metrics import jumping_summary
+    from splitter_bringup.core.metrics import flight_summary
+
+    metrics = flight_summary(
+        series,
+        scenario.paper,
+        scenario.controller.w_ref_rad_s,
+        scenario.controller.attitude_reference,
+    )
+    if scenario.jumps:
+        metrics = {**jumping_summary(series, scenario.jumps, scenario.paper), **metrics}
+        metrics.pop("max_horizontal_speed_m_s", None)
+    return metrics
+
+
 def _jsonable(value):
     if isinstance(value, float) and not math.isfinite(value):
         return None
@@ -86,7 +107,7 @@ def _jsonable(value):
 
 def main(args: argparse.Namespace) -> int:
     """Run, summarise, plot; 0 on success, 2 on a bad scenario or variant."""
-    from splitter_bringup.core.metrics import flight_summary, summary_table
+    from splitter_bringup.core.metrics import summary_table
 
     try:
         base = load_scenario(args.scenario)
@@ -112,12 +133,7 @@ def main(args: argparse.Namespace) -> int:
         wall = time.monotonic() - started
         runs[variant] = series
         series.save_npz(out / f"{variant}.npz")
-        metrics = flight_summary(
-            series,
-            scenario.paper,
-            scenario.controller.w_ref_rad_s,
-            scenario.controller.attitude_reference,
-        )
+        metrics = _metrics(series, scenario)
         summaries[variant] = {
             "wall_time_s": wall,
             "controller_enabled": scenario.controller.enabled,
@@ -133,6 +149,12 @@ def main(args: argparse.Namespace) -> int:
             plot_quaternion_map(
                 series, out / f"{variant}_quaternion.png", f"{base.name}: {variant}"
             )
+            if scenario.jumps or scenario.gravity_m_s2 > 0.0:
+                from splitter_bringup.commands.plot import plot_trajectory
+
+                plot_trajectory(
+                    series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
+                )
     if not args.no_plots and len(runs) > 1:
         from splitter_bringup.core.plots import plot_comparison
 
@@ -147,12 +169,7 @@ def main(args: argparse.Namespace) -> int:
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     for variant in variants:
-        metrics = flight_summary(
-            runs[variant],
-            load_scenario(args.scenario, variant).paper,
-            base.controller.w_ref_rad_s,
-            base.controller.attitude_reference,
-        )
+        metrics = _metrics(runs[variant], load_scenario(args.scenario, variant))
         print(f"\n{base.name} / {variant}")
         print(f"  {'metric':<26}{'value':>12}  {'unit':<9}paper")
         for name, value, unit, paper in summary_table(metrics):

@@ -55,6 +55,8 @@ def simulator_parameters(
         "use_sim_time": False,
         "startup_wait_s": STARTUP_WAIT_S,
         "startup_wait_for_nodes": list(CONTROLLER_NODES),
+        # the MPC creates its publisher once its solver is built (a first start compiles)
+        "startup_wait_for_publishers": [names.INERTIA_SETPOINT],
         "startup_wait_for_subscribers": [recorder] if recorder else [],
         "startup_settle_s": STARTUP_SETTLE_S,
         "mode": "real_time" if real_time else "lockstep",
