@@ -11,7 +11,7 @@ STAMP := $(VENV)/.splitter-installed
 PACKAGES := splitter_msgs_py splitter_sim splitter_mpc splitter_ik splitter_bringup
 PKG_DIRS := $(addprefix splitter_ws/src/,$(PACKAGES))
 PKG_SETUP := $(foreach p,$(PKG_DIRS),$(p)/setup.py $(p)/setup.cfg $(p)/package.xml)
-OUT ?= runs/demo
+OUT ?= runs/lunar_jumping
 
 # ROS environment of every process make starts (DESIGN.md sections 6 and 8).
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
@@ -47,6 +47,7 @@ test: lint
 
 demo: $(STAMP)
 	$(BIN)/splitter run lunar_jumping --out $(OUT)
+	@echo "bag, summary.json and plots in $(OUT)"
 
 bench: $(STAMP)
 	$(BIN)/splitter bench sim --json

@@ -132,16 +132,22 @@ def test_mpc_destroyed_mid_run_leaves_the_loop_running() -> None:
 @pytest.mark.slow
 def test_lunar_jumping_completes_its_jumps() -> None:
     scenario = load_scenario("lunar_jumping")
-    record = run_graph(scenario, scenario.duration_s, timeout_s=300.0)
+    last_jump = scenario.jumps[-1]
+    until_s = last_jump.time_s + last_jump.duration_s + 0.1  # [s] both thrusts are over
+    record = run_graph(scenario, until_s, timeout_s=300.0)
     phases = [m.data for m in record.messages(names.GAIT_PHASE)]
+    # Launch, then the second jump from the ground (the 5.6 m dumbbell cartwheels on one
+    # hemi between the jumps, so it may never be wholly airborne), then landing.
     assert phases[0] == "LAUNCH"
-    assert "IN_FLIGHT" in phases
+    assert "JUMP" in phases
+    assert phases[-1] == "LANDING"
     jumps = [conv.wrench_from_msg(m) for m in record.messages(names.JUMP_COMMAND)]
     thrusting = np.array([np.linalg.norm(j.force_n) > 0 for j in jumps])
     starts = np.flatnonzero(np.diff(thrusting.astype(int)) == 1) + 1
     n_thrusts = len(starts) + int(thrusting[0])
     assert n_thrusts == len(scenario.jumps), f"{n_thrusts} thrust phases"
     odom = [conv.odom_from_msg(m) for m in record.messages(names.ODOM)]
-    assert max(o.position_m[2] for o in odom) > scenario.initial_position_m[2] + 0.1
-    assert math.isclose(odom[-1].t_ns * 1e-9, scenario.duration_s, abs_tol=0.01)
+    assert max(o.position_m[2] for o in odom) > scenario.initial_position_m[2] + 0.5
+    assert max(o.velocity_world_m_s[0] for o in odom) > 1.0  # it travels forward
+    assert math.isclose(odom[-1].t_ns * 1e-9, until_s, abs_tol=0.01)
     all_finite(record)
