@@ -31,7 +31,7 @@ from std_msgs.msg import String
 
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import MpcSettings
-from splitter_mpc.core.ocp import MpcWeights
+from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES, MpcWeights
 from splitter_mpc.core.solvers import SOLVERS, SolverOptions
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
@@ -73,7 +73,16 @@ PARAMETERS = (
         "tension_slack_weight", 100.0, "L1 penalty of a tension shortfall [s^2/rad^2]", 0.0, 1e9
     ),
     ParameterSpec("horizon", 50, "prediction horizon N [steps]", 2, 1000),
-    ParameterSpec("dt_s", 0.01, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
+    ParameterSpec("dt_s", 0.05, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
+    ParameterSpec(
+        "integrator", "rk4", "prediction model integrator (paper: euler)", choices=INTEGRATORS
+    ),
+    ParameterSpec(
+        "objective",
+        "momentum",
+        "how q_w/q_t weigh the rate: momentum direction + reachable spin, or paper (w - w_ref)",
+        choices=OBJECTIVES,
+    ),
     ParameterSpec("replan_period_s", 0.1, "re-plan period [s]", 0.001, 10.0),
     ParameterSpec("control_period_s", 0.01, "setpoint period [s]", 0.001, 1.0),
     ParameterSpec("solver", "fatrop", "optimisation back-end", choices=SOLVERS),
@@ -107,6 +116,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
         mpc = MpcSettings(
             horizon=int(values["horizon"]),
             dt_s=float(values["dt_s"]),
+            integrator=str(values["integrator"]),
             solver=str(values["solver"]),
             options=options,
             tension_min_n=float(values["tension_min_n"]),
@@ -119,6 +129,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
             q_q=float(values["q_q"]),
             q_tq=float(values["q_tq"]),
             tension_slack=float(values["tension_slack_weight"]),
+            objective=str(values["objective"]),
         )
         return ControllerConfig(
             enabled=bool(values["enabled"]),

@@ -41,11 +41,15 @@ def test_replans_on_the_100_ms_grid_and_plays_the_plan_back(mpc) -> None:
     first = tick(ctl, 0)
     assert ctl.status.replanned and ctl.status.solve_ok and ctl.status.active
     plan = ctl.plan
-    np.testing.assert_allclose(first, plan.inertia[1])
+    assert plan.dt_ns == 50 * MS  # the default prediction step
+    # each 10 ms tick commands the plan's inertia at the end of the tick (linear in a step)
+    np.testing.assert_allclose(first, 0.8 * plan.inertia[0] + 0.2 * plan.inertia[1])
     for t_ms in range(10, 100, 10):
         setpoint = tick(ctl, t_ms)
         assert not ctl.status.replanned
-        np.testing.assert_allclose(setpoint, plan.inertia[t_ms // 10 + 1])
+        j, share = divmod(t_ms + 10, 50)
+        expected = (1 - share / 50) * plan.inertia[j] + share / 50 * plan.inertia[j + 1]
+        np.testing.assert_allclose(setpoint, expected)
     tick(ctl, 100)
     assert ctl.status.replanned and ctl.plan is not plan and ctl.status.solves == 2
 
@@ -57,7 +61,7 @@ def test_injected_failure_keeps_executing_the_previous_plan_then_recovers(mpc) -
     ctl.inject_solver_failures(1)
     for t_ms in range(100, 200, 10):
         setpoint = tick(ctl, t_ms)
-        np.testing.assert_allclose(setpoint, plan.setpoint_at(t_ms * MS))  # the shifted plan
+        np.testing.assert_allclose(setpoint, plan.setpoint_at(t_ms * MS, 10 * MS))  # the old plan
     assert ctl.status.failures == 1 and ctl.status.consecutive_failures == 1
     assert ctl.status.solve_status == "injected_failure" and not ctl.status.solve_ok
     assert ctl.plan is plan and ctl.status.plan_age_s == pytest.approx(0.19)
@@ -120,6 +124,8 @@ def test_bad_input_is_rejected_and_leaves_the_state_unchanged(mpc) -> None:
 def test_config_rejects_inconsistent_periods() -> None:
     with pytest.raises(ValueError, match="multiple"):
         ControllerConfig(replan_period_s=0.015)
+    with pytest.raises(ValueError, match="multiple"):  # 100 ms is not a whole number of steps
+        ControllerConfig(mpc=MpcSettings(dt_s=0.03))
     with pytest.raises(ValueError, match="nominal"):
         ControllerConfig(nominal_inertia_kg_m2=(1.0, -1.0, 1.0))
 

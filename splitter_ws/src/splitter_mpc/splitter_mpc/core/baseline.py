@@ -17,9 +17,9 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from splitter_mpc.core.limits import morphing_limits
+from splitter_mpc.core.limits import axis_inertia_range, morphing_limits
 from splitter_mpc.core.mpc import MpcPlan, MpcSettings
-from splitter_mpc.core.ocp import MpcWeights, quat_multiply
+from splitter_mpc.core.ocp import MpcWeights, discrete_dynamics, momentum_target
 from splitter_mpc.core.solvers import SolverResult
 from splitter_sim.core.model import RobotModel
 
@@ -52,19 +52,36 @@ class OptiBaselineMpc:
         self._p_slack = opti.parameter()
         self._p_rate = opti.parameter(3, n)  # [m^2] bound on A dI_k
         self._p_tension = opti.parameter(1, n)  # lower bound of w_y^2 + w_z^2
+        self._p_paper = opti.parameter()  # 1: the paper's J_w, 0: the momentum objective
+        self._p_axis = opti.parameter(3)  # reference axis e
+        self._p_h_norm = opti.parameter()  # |H|
+        self._p_spin = opti.parameter()  # reachable spin rate about e
+        self._p_i_nom = opti.parameter(3)
+        self._p_q_spin = opti.parameter(2)  # e' Q_w e, e' Q_t e
+        m_inv = ca.DM(np.linalg.inv(lim.radius_squared_matrix))
+
+        def rate_error(k: int):
+            paper = w[:, k] - self._p_w_ref
+            momentum = (inertia[:, k] * w[:, k] - self._p_h_norm * self._p_axis) / self._p_i_nom
+            return self._p_paper * paper + (1 - self._p_paper) * momentum
+
+        def spin_error(k: int):
+            axis_inertia = ca.dot(self._p_axis**2, inertia[:, k]) + self._p_paper
+            return self._p_h_norm / axis_inertia - self._p_spin
+
         opti.subject_to(w[:, 0] == self._p_x0[0:3])
         opti.subject_to(q[:, 0] == self._p_x0[3:7])
         opti.subject_to(inertia[:, 0] == self._p_x0[7:10])
         cost = 0
         for k in range(n):
             # dynamics with the correct gyroscopic sign (see ocp.py)
-            momentum = inertia[:, k] * w[:, k]
             opti.subject_to(inertia[:, k + 1] == inertia[:, k] + d_inertia[:, k])
-            opti.subject_to(
-                inertia[:, k + 1] * w[:, k + 1] == momentum - dt * ca.cross(w[:, k], momentum)
-            )
-            q_next = q[:, k] + 0.5 * dt * quat_multiply(q[:, k], ca.vertcat(0, w[:, k]))
-            opti.subject_to(q[:, k + 1] == q_next / ca.norm_2(q_next))
+            # the same model (correct gyroscopic sign, see ocp.py), written on I not s
+            x_k = ca.vertcat(w[:, k], q[:, k], ca.mtimes(a_sq, inertia[:, k]))
+            u_k = ca.vertcat(ca.mtimes(a_sq, d_inertia[:, k]), 0)
+            x_next = discrete_dynamics(x_k, u_k, dt, m_inv, self.settings.integrator)
+            opti.subject_to(w[:, k + 1] == x_next[0:3])
+            opti.subject_to(q[:, k + 1] == x_next[3:7])
             # hardware limits
             opti.subject_to(
                 opti.bounded(
@@ -79,14 +96,14 @@ class OptiBaselineMpc:
             opti.subject_to(slack[k] >= 0)
             if k >= 1:
                 opti.subject_to(w[1, k] ** 2 + w[2, k] ** 2 + slack[k] >= self._p_tension[k])
-            e = w[:, k] - self._p_w_ref
+            e = rate_error(k)
             q_ref = self._p_q_ref[:, k]
-            cost += ca.dot(e, self._p_q_w * e)
+            cost += ca.dot(e, self._p_q_w * e) + self._p_q_spin[0] * spin_error(k) ** 2
             cost += self._p_q_q * 0.5 * (1 - ca.dot(q_ref, q[:, k]) ** 2)
             cost += ca.dot(d_inertia[:, k], self._p_r * d_inertia[:, k])
             cost += self._p_slack * slack[k] + 1e-4 * slack[k] ** 2
-        e = w[:, n] - self._p_w_ref
-        cost += ca.dot(e, self._p_q_t * e)
+        e = rate_error(n)
+        cost += ca.dot(e, self._p_q_t * e) + self._p_q_spin[1] * spin_error(n) ** 2
         cost += self._p_q_tq * 0.5 * (1 - ca.dot(self._p_q_ref[:, n], q[:, n]) ** 2)
         opti.minimize(cost)
         opti.solver(
@@ -94,9 +111,19 @@ class OptiBaselineMpc:
             {"print_time": False},
             {"print_level": 0, "sb": "yes", "tol": self.settings.options.tol},
         )
+        x_sym = ca.SX.sym("x", 10)
+        self._step_f = ca.Function(
+            "F",
+            [x_sym],
+            [discrete_dynamics(x_sym, ca.SX.zeros(4), dt, m_inv, self.settings.integrator)],
+        )
         self._opti = opti
         self._vars = (w, q, inertia, d_inertia, slack)
         self._last: tuple[int, dict] | None = None
+
+    def _step(self, x: np.ndarray) -> np.ndarray:
+        """One step of the MPC model at constant inertia."""
+        return np.asarray(self._step_f(x), dtype=float).ravel()
 
     @property
     def horizon(self) -> int:
@@ -115,10 +142,9 @@ class OptiBaselineMpc:
         *,
         nominal_inertia_kg_m2: ArrayLike | None = None,
     ) -> MpcPlan:
-        """Same contract as :meth:`InertialMorphingMpc.solve` (paper-form weights only)."""
-        del nominal_inertia_kg_m2  # the paper's J_w: no nominal-inertia terms
-        if weights.tracking != "angular_velocity" or any(weights.q_i):
-            raise ValueError("the Opti baseline implements the paper's cost only")
+        """Same contract as :meth:`InertialMorphingMpc.solve` (no q_i term)."""
+        if any(weights.q_i):
+            raise ValueError("the Opti baseline has no nominal-configuration term q_i")
         opti, lim, n, dt = self._opti, self.limits, self.horizon, self.settings.dt_s
         x0 = np.asarray(state, dtype=float).reshape(10).copy()
         x0[3:7] /= np.linalg.norm(x0[3:7])
@@ -136,7 +162,20 @@ class OptiBaselineMpc:
         opti.set_value(self._p_q_q, weights.q_q)
         opti.set_value(self._p_q_tq, weights.q_tq)
         opti.set_value(self._p_slack, weights.tension_slack)
-        opti.set_value(self._p_rate, (2.0 * lim.radius_step_max_m * r_low).T)
+        h_norm = float(np.linalg.norm(x0[7:10] * x0[0:3]))
+        axis, _ = momentum_target(w_ref_rad_s, h_norm)
+        axis, spin = momentum_target(w_ref_rad_s, h_norm, axis_inertia_range(lim, axis))
+        scales = weights.residual_scales(axis)  # the same blend and spin weights as the OCP
+        opti.set_value(self._p_paper, scales[15])
+        opti.set_value(self._p_axis, axis)
+        opti.set_value(self._p_h_norm, h_norm)
+        opti.set_value(self._p_spin, spin)
+        opti.set_value(
+            self._p_i_nom, x0[7:10] if nominal_inertia_kg_m2 is None else nominal_inertia_kg_m2
+        )
+        opti.set_value(self._p_q_spin, 0.5 * scales[16:18] ** 2)
+        r_next_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * (k + 1) * dt)
+        opti.set_value(self._p_rate, (2.0 * lim.radius_step_max_m * r_next_low).T)
         opti.set_value(self._p_tension, lim.tension_min_n / (lim.body_mass_kg * r_low[:, 0]))
         self._set_initial(int(t_ns), x0)
         w, q, inertia, d_inertia, slack = self._vars
@@ -206,7 +245,8 @@ class OptiBaselineMpc:
         w_t, q_t, i_t = states["w"][:, -1], states["q"][:, -1], states["inertia"][:, -1]
         tail = {"w": [], "q": [], "inertia": []}
         for _ in range(n + 1 - kept):
-            w_t, q_t = _euler_step(w_t, q_t, i_t, self.settings.dt_s)
+            x_t = self._step(np.concatenate([w_t, q_t, self.limits.radii_squared(i_t)]))
+            w_t, q_t = x_t[0:3], x_t[3:7]
             tail["w"].append(w_t)
             tail["q"].append(q_t)
             tail["inertia"].append(i_t)
@@ -218,21 +258,3 @@ class OptiBaselineMpc:
         opti.set_initial(inertia, states["inertia"])
         opti.set_initial(d_inertia, controls)
         opti.set_initial(slack, np.hstack([last["slack"][:, shift:], np.zeros((1, shift))]))
-
-
-def _euler_step(w: np.ndarray, q: np.ndarray, inertia: np.ndarray, dt: float):
-    """One step of the MPC model at constant inertia (numpy)."""
-    momentum = inertia * w
-    w_next = (momentum - dt * np.cross(w, momentum)) / inertia
-    qw, qx, qy, qz = q
-    wx, wy, wz = w
-    q_dot = 0.5 * np.array(
-        [
-            -qx * wx - qy * wy - qz * wz,
-            qw * wx + qy * wz - qz * wy,
-            qw * wy - qx * wz + qz * wx,
-            qw * wz + qx * wy - qy * wx,
-        ]
-    )
-    q_next = q + dt * q_dot
-    return w_next, q_next / np.linalg.norm(q_next)

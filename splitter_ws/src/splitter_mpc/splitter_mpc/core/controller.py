@@ -55,10 +55,10 @@ class ControllerConfig:
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
         replan, tick = self.replan_period_ns, self.control_period_ns
-        if replan % tick != 0 or tick % self.mpc.dt_ns != 0:
+        if replan % tick != 0 or replan % self.mpc.dt_ns != 0:
             raise ValueError(
-                "replan_period_s must be a multiple of control_period_s, itself a multiple of "
-                f"the prediction step (got {replan}, {tick}, {self.mpc.dt_ns} ns)"
+                "replan_period_s must be a multiple of control_period_s and of the prediction "
+                f"step (warm-start shift) (got {replan}, {tick}, {self.mpc.dt_ns} ns)"
             )
         if self.nominal_inertia_kg_m2 is not None:
             nominal = np.asarray(self.nominal_inertia_kg_m2, dtype=float)
@@ -217,7 +217,11 @@ class MorphingController:
         else:
             if self._plan is None or t_ns % self.config.replan_period_ns == 0:
                 status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))
-            setpoint = inertia.copy() if self._plan is None else self._plan.setpoint_at(t_ns)
+            setpoint = (
+                inertia.copy()
+                if self._plan is None
+                else self._plan.setpoint_at(t_ns, self.config.control_period_ns)
+            )
         if not np.all(np.isfinite(setpoint)):
             _LOG.error("non-finite setpoint %s at t = %d ns: holding", setpoint, t_ns)
             setpoint = self._last_setpoint if self._last_setpoint is not None else inertia.copy()
@@ -242,6 +246,7 @@ class MorphingController:
                 self._reference.w_ref_rad_s,
                 self.attitude_references(t_ns),
                 self.weights,
+                nominal_inertia_kg_m2=self._nominal,
             )
             result = plan.result
             status, ok = result.status, result.usable

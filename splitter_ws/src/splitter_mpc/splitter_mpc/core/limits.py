@@ -167,3 +167,17 @@ def project_to_reachable(limits: MorphingLimits, inertia_kg_m2: ArrayLike) -> ND
     """
     s = np.clip(limits.radii_squared(inertia_kg_m2), limits.radius_min_m**2, limits.radius_max_m**2)
     return np.linalg.solve(limits.radius_squared_matrix, s)
+
+
+def axis_inertia_range(limits: MorphingLimits, axis: ArrayLike) -> tuple[float, float]:
+    """Smallest and largest moment ``e' I e`` [kg m^2] about the body axis ``e`` within reach.
+
+    ``I = M s`` is linear in the squared radii ``s`` and the radius bounds are a box
+    in ``s``, so each extreme sits at a corner chosen by the signs of ``(e^2)' M``.
+    """
+    e_sq = np.asarray(axis, dtype=float).reshape(3) ** 2
+    coefficients = e_sq @ np.linalg.inv(limits.radius_squared_matrix)  # [kg] per m^2
+    low, high = limits.radius_min_m**2, limits.radius_max_m**2
+    smallest = float(coefficients @ np.where(coefficients >= 0.0, low, high))
+    largest = float(coefficients @ np.where(coefficients >= 0.0, high, low))
+    return smallest, largest

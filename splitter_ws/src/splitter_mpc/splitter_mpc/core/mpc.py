@@ -58,14 +58,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_mpc.core.limits import MorphingLimits, morphing_limits
+from splitter_mpc.core.limits import MorphingLimits, axis_inertia_range, morphing_limits
 from splitter_mpc.core.ocp import (
+    INTEGRATORS,
     NG_PATH,
     NU,
     NX,
     MpcWeights,
     build_ocp,
     dynamics_function,
+    momentum_target,
     parameter_vector,
 )
 from splitter_mpc.core.solvers import (
@@ -83,10 +85,15 @@ NS_PER_S = 1_000_000_000
 
 @dataclass(frozen=True)
 class MpcSettings:
-    """Horizon, solver and hardware margins (paper Table I: N = 50, dt = 0.01 s)."""
+    """Horizon, integrator, solver and hardware margins.
+
+    Default: N = 50 steps of 50 ms (2.5 s) with RK4. The paper's (Table I, section
+    VI) is :data:`PAPER_MPC_SETTINGS`: N = 50 steps of 10 ms with explicit Euler.
+    """
 
     horizon: int = 50
-    dt_s: float = 0.01  # [s] prediction step
+    dt_s: float = 0.05  # [s] prediction step
+    integrator: str = "rk4"
     solver: str = "fatrop"
     options: SolverOptions = field(default_factory=SolverOptions)
     tension_min_n: float = 1.0  # [N] taut-tether margin (soft)
@@ -99,12 +106,17 @@ class MpcSettings:
             raise ValueError(f"dt_s must be in (0, 1] s, got {self.dt_s!r}")
         if round(self.dt_s * NS_PER_S) % 1_000_000 != 0:
             raise ValueError(f"dt_s must be a whole number of milliseconds, got {self.dt_s!r}")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
 
     @property
     def dt_ns(self) -> int:
         return round(self.dt_s * NS_PER_S)
+
+
+PAPER_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.01, integrator="euler")
 
 
 @dataclass(frozen=True)
@@ -119,14 +131,25 @@ class MpcPlan:
     radii: NDArray[np.float64]  # (N+1, 3) planned radii [m]
     result: SolverResult
 
-    def setpoint_at(self, t_ns: int) -> NDArray[np.float64]:
-        """Inertia to command at ``t_ns``: the plan's value at the end of that step.
+    def setpoint_at(self, t_ns: int, tick_ns: int | None = None) -> NDArray[np.float64]:
+        """Inertia to command at ``t_ns``: the plan's value at the end of that control tick.
 
-        The control dI_j acts over [t_j, t_j+1); the actuators are commanded the
-        inertia they should reach by t_j+1. Past the horizon the last value holds.
+        The actuators are commanded the inertia the plan reaches at the end of the
+        tick of length ``tick_ns`` (default: one prediction step) that contains
+        ``t_ns``, interpolated linearly inside a prediction step (the MPC's RK4
+        model moves the inertia linearly over a step). With ``tick_ns = dt_ns``
+        it is ``inertia[j + 1]`` for ``t_ns`` in step j. Past the horizon the last
+        value holds.
         """
-        j = max(0, (int(t_ns) - self.t_ns) // self.dt_ns)
-        return self.inertia[min(j + 1, len(self.inertia) - 1)].copy()
+        tick = self.dt_ns if tick_ns is None else int(tick_ns)
+        elapsed = max(0, int(t_ns) - self.t_ns)
+        end = (elapsed // tick + 1) * tick  # [ns] after t_ns of the plan
+        j, rest = divmod(end, self.dt_ns)
+        last = len(self.inertia) - 1
+        if j >= last:
+            return self.inertia[last].copy()
+        share = rest / self.dt_ns
+        return (1.0 - share) * self.inertia[j] + share * self.inertia[j + 1]
 
 
 class InertialMorphingMpc:
@@ -139,9 +162,15 @@ class InertialMorphingMpc:
         self.limits: MorphingLimits = morphing_limits(
             model, s.dt_s, s.tension_min_n, s.radius_rate_scale
         )
-        self.ocp = build_ocp(s.horizon, s.dt_s, self.limits, gap_next_minus_f=s.solver == "fatrop")
+        self.ocp = build_ocp(
+            s.horizon,
+            s.dt_s,
+            self.limits,
+            gap_next_minus_f=s.solver == "fatrop",
+            integrator=s.integrator,
+        )
         self.backend = make_backend(s.solver, self.ocp, s.options)
-        self._dynamics = dynamics_function(s.dt_s, self.ocp.inertia_map).expand()
+        self._dynamics = dynamics_function(s.dt_s, self.ocp.inertia_map, s.integrator).expand()
         self._last: tuple[int, SolverResult] | None = None
 
     @property
@@ -197,7 +226,7 @@ class InertialMorphingMpc:
 
         ``q_ref_wxyz`` is the attitude reference at each of the N+1 prediction
         times; ``nominal_inertia_kg_m2`` (default: the measured one) is the I_nom of
-        the weights' momentum tracking and nominal-configuration terms. The plan is
+        the momentum objective's rate scale and of the nominal-configuration term. The plan is
         returned whatever the solver's status; check ``plan.result.usable`` before
         executing it. The warm start is updated by usable solutions (and by every
         finite sqp/rti iterate).
@@ -207,6 +236,8 @@ class InertialMorphingMpc:
         z0, lam_g0, lam_z0 = self._warm_start(int(t_ns), x0)
         lbz, ubz = self.ocp.variable_bounds(x0)
         lbg, ubg = self.ocp.constraint_bounds(x0)
+        momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
+        axis, _ = momentum_target(w_ref_rad_s, momentum_norm)
         data = ProblemInstance(
             z0=z0,
             lam_g0=lam_g0,
@@ -217,6 +248,8 @@ class InertialMorphingMpc:
                 q_ref_wxyz,
                 weights,
                 measured[7:10] if nominal_inertia_kg_m2 is None else nominal_inertia_kg_m2,
+                momentum_norm=momentum_norm,
+                axis_inertia_range_kg_m2=axis_inertia_range(self.limits, axis),
             ),
             lbz=lbz,
             ubz=ubz,

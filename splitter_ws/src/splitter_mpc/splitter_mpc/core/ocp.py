@@ -9,8 +9,8 @@ every hardware limit becomes a simple bound (see :mod:`.limits`):
 
 * radius bounds: ``r_min^2 <= s_k <= r_max^2`` (exactly the reachable set; the
   paper's ``0 < I <= I_max`` follows from it);
-* radius rates: ``|ds_k| <= 2 v dt rhat_k`` with ``rhat_k = max(r_min, r_0 - v k dt)``
-  the smallest radius reachable by stage k: ``|r_{k+1} - r_k| = |ds| / (r_k + r_{k+1})``
+* radius rates: ``|ds_k| <= 2 v dt rhat_k`` with ``rhat_k = max(r_min, r_0 - v (k+1) dt)``
+  the smallest radius reachable by stage k + 1: ``|r_{k+1} - r_k| = |ds| / (r_k + r_{k+1})``
   and both radii are ``>= rhat_k``, so ``|dr| <= v dt`` (exact when the radius
   shrinks at full speed, conservative otherwise). The paper's box
   ``|dI| <= dI_max`` is implied (``dI_max`` is derived from the same speeds at the
@@ -60,8 +60,12 @@ NG_PATH = 1  # tension
 W = slice(0, 3)
 Q = slice(3, 7)
 RADII_SQ = slice(7, 10)
-N_WEIGHTS = 17  # q_w(3), r(3), q_t(3), q_q, q_tq, slack penalty, q_i(3), momentum blend, spare
-TRACKING_MODES = ("angular_velocity", "angular_momentum")
+# q_w(3), r(3), q_t(3), q_q, q_tq, slack penalty, q_i(3), paper blend, spin-rate scales (2)
+N_WEIGHTS = 18
+N_MOMENTUM_TARGET = 5  # reference axis e (3), |H| [kg m^2/s], |w_ref| [rad/s]
+OBJECTIVES = ("momentum", "paper")
+INTEGRATORS = ("euler", "rk4")
+_AXIS_EPS = 1e-9  # [rad/s] below this |w_ref| has no axis: the paper's J_w is used
 _SLACK_QUADRATIC = 1e-4  # [s^4/rad^4] keeps the slack's Hessian regular
 
 
@@ -77,29 +81,69 @@ def quat_multiply(p: ca.SX, q: ca.SX) -> ca.SX:
     )
 
 
-def discrete_dynamics(x: ca.SX, u: ca.SX, dt_s: float, inertia_map: ArrayLike) -> ca.SX:
-    """x_{k+1} = F(x_k, u_k), explicit Euler in angular momentum (module docstring).
-
-    ``inertia_map`` is M with ``I = M s``.
-    """
-    m = ca.DM(np.asarray(inertia_map, dtype=float))
+def _euler_step(x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM) -> tuple[ca.SX, ca.SX]:
+    """(h_{k+1}, q_{k+1}) by explicit Euler in angular momentum (the paper's eq. 13-16)."""
     w, q, s_sq = x[W], x[Q], x[RADII_SQ]
-    inertia = ca.mtimes(m, s_sq)
-    inertia_next = ca.mtimes(m, s_sq + u[0:3])
-    momentum = inertia * w
+    momentum = ca.mtimes(m, s_sq) * w
     # Correct sign (the paper's eq. 13-14 print +): d/dt(I w) = -w x (I w).
-    momentum_next = momentum - dt_s * ca.cross(w, momentum)
-    w_next = momentum_next / inertia_next
-    q_next = q + 0.5 * dt_s * quat_multiply(q, ca.vertcat(0, w))
-    return ca.vertcat(w_next, q_next / ca.norm_2(q_next), s_sq + u[0:3])
+    return momentum - dt_s * ca.cross(w, momentum), q + 0.5 * dt_s * quat_multiply(
+        q, ca.vertcat(0, w)
+    )
 
 
-def dynamics_function(dt_s: float, inertia_map: ArrayLike) -> ca.Function:
+def _rk4_step(x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM) -> tuple[ca.SX, ca.SX]:
+    """(h_{k+1}, q_{k+1}) by classical RK4 of ``dh/dt = -w x h``, ``dq/dt = q (x) [0, w] / 2``.
+
+    ``w = h / I(tau)`` with the inertia moving linearly from I_k to I_{k+1} over the
+    step, as the setpoints played back at every control tick move it.
+    """
+    q0, s_sq = x[Q], x[RADII_SQ]
+    inertia_0 = ca.mtimes(m, s_sq)
+    d_inertia = ca.mtimes(m, u[0:3])
+    h0 = inertia_0 * x[W]
+
+    def rates(h: ca.SX, q: ca.SX, tau: float) -> tuple[ca.SX, ca.SX]:
+        w = h / (inertia_0 + tau * d_inertia)
+        return -ca.cross(w, h), 0.5 * quat_multiply(q, ca.vertcat(0, w))
+
+    k1h, k1q = rates(h0, q0, 0.0)
+    k2h, k2q = rates(h0 + 0.5 * dt_s * k1h, q0 + 0.5 * dt_s * k1q, 0.5)
+    k3h, k3q = rates(h0 + 0.5 * dt_s * k2h, q0 + 0.5 * dt_s * k2q, 0.5)
+    k4h, k4q = rates(h0 + dt_s * k3h, q0 + dt_s * k3q, 1.0)
+    h1 = h0 + dt_s / 6.0 * (k1h + 2.0 * k2h + 2.0 * k3h + k4h)
+    q1 = q0 + dt_s / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
+    return h1, q1
+
+
+def discrete_dynamics(
+    x: ca.SX, u: ca.SX, dt_s: float, inertia_map: ArrayLike, integrator: str = "euler"
+) -> ca.SX:
+    """x_{k+1} = F(x_k, u_k) (module docstring); ``inertia_map`` is M with ``I = M s``.
+
+    ``integrator``: ``"euler"`` (the paper's scheme) or ``"rk4"``.
+    """
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+    m = ca.DM(np.asarray(inertia_map, dtype=float))
+    s_next = x[RADII_SQ] + u[0:3]
+    step = _euler_step if integrator == "euler" else _rk4_step
+    momentum_next, q_next = step(x, u, dt_s, m)
+    w_next = momentum_next / ca.mtimes(m, s_next)
+    return ca.vertcat(w_next, q_next / ca.norm_2(q_next), s_next)
+
+
+def dynamics_function(
+    dt_s: float, inertia_map: ArrayLike, integrator: str = "euler"
+) -> ca.Function:
     """F(x, u) as a CasADi function (SX)."""
     x = ca.SX.sym("x", NX)
     u = ca.SX.sym("u", NU)
     return ca.Function(
-        "F", [x, u], [discrete_dynamics(x, u, dt_s, inertia_map)], ["x", "u"], ["x_next"]
+        "F",
+        [x, u],
+        [discrete_dynamics(x, u, dt_s, inertia_map, integrator)],
+        ["x", "u"],
+        ["x_next"],
     )
 
 
@@ -127,23 +171,26 @@ class ParameterLayout:
         return slice(self.weights.stop, self.weights.stop + 3)
 
     @property
+    def momentum_target(self) -> slice:
+        return slice(self.nominal_inertia.stop, self.nominal_inertia.stop + N_MOMENTUM_TARGET)
+
+    @property
     def size(self) -> int:
-        return self.nominal_inertia.stop
+        return self.momentum_target.stop
 
 
 @dataclass(frozen=True)
 class MpcWeights:
-    """The paper's diagonal weights (Tables I and II) and this project's additions.
+    """The paper's diagonal weights (Tables I and II), the objective they weigh, additions.
 
-    Additions (zero / paper form by default):
-
-    * ``tracking``: ``"angular_velocity"`` is the paper's J_w on the body rate w.
-      ``"angular_momentum"`` evaluates J_w and J_t on ``w~ = I w / I_nom`` (the body
-      angular momentum over the nominal inertia): identical at ``I = I_nom``, but
-      the MPC can no longer lower the cost by inflating the inertia (``w = H / I``)
-      instead of turning the angular momentum into the reference axis;
-    * ``q_i``: weight of ``((I - I_nom) / I_nom)^2`` per stage, which brings the
-      limbs and the tether back to the nominal configuration;
+    * ``objective``: how Q_w and Q_t are applied (module docstring, "Cost").
+      ``"momentum"`` (default): on the direction of the body angular momentum
+      ``(I w - |H| e) / I_nom`` and on the spin rate the configuration gives about
+      the reference axis ``|H| / (e' I e) - w_spin``; it coincides with the paper's
+      J_w at a spin about e and cannot be lowered by inflating the inertia.
+      ``"paper"``: the paper's J_w on the body rate ``w - w_ref``.
+    * ``q_i``: weight of ``((I - I_nom) / I_nom)^2`` per stage (off by default),
+      which pulls the limbs and the tether toward the nominal configuration;
     * ``tension_slack``: L1 penalty of a tether-tension shortfall [s^2/rad^2 per
       stage]: a 0.1 rad^2/s^2 shortfall costs as much as a 0.1 rad/s rate error
       at Q_w = 100.
@@ -156,7 +203,7 @@ class MpcWeights:
     q_tq: float = 0.0
     tension_slack: float = 100.0
     q_i: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    tracking: str = "angular_velocity"
+    objective: str = "momentum"
 
     def __post_init__(self) -> None:
         if len(self.q_w) != 3 or len(self.r) != 3 or len(self.q_t) != 3 or len(self.q_i) != 3:
@@ -166,27 +213,35 @@ class MpcWeights:
             raise ValueError(f"MpcWeights must be finite and >= 0, got {values}")
         if min(self.r) <= 0.0:
             raise ValueError("MpcWeights.r must be > 0 (the control Hessian must be regular)")
-        if self.tracking not in TRACKING_MODES:
-            raise ValueError(f"MpcWeights.tracking must be one of {TRACKING_MODES}")
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"MpcWeights.objective must be one of {OBJECTIVES}")
 
-    def residual_scales(self) -> NDArray[np.float64]:
+    def residual_scales(self, reference_axis: ArrayLike = (0.0, 0.0, 0.0)) -> NDArray[np.float64]:
         """The weights as OCP parameters: least-squares residual scales.
 
         ``e' Q e = 1/2 |sqrt(2 Q) e|^2``; the quaternion term ``Q_q/2 |P q|^2`` scales by
         ``sqrt(Q_q)``. Square roots are taken here, numerically, so the symbolic
         problem has no ``sqrt(p)`` whose derivative is infinite at a zero weight.
+        The spin-rate term weighs the reference axis ``e`` (unit, or 0 without one)
+        with ``e' Q_w e`` (``e' Q_t e`` at the end); the paper blend is 1 for the
+        paper's objective and when there is no reference axis.
         """
+        axis = np.asarray(reference_axis, dtype=float).reshape(3)
+        has_axis = float(np.linalg.norm(axis)) > 0.5
+        paper = self.objective == "paper" or not has_axis
+        q_w, q_t = np.asarray(self.q_w, dtype=float), np.asarray(self.q_t, dtype=float)
         return np.array(
             [
-                *np.sqrt(2.0 * np.asarray(self.q_w, dtype=float)),
+                *np.sqrt(2.0 * q_w),
                 *np.sqrt(2.0 * np.asarray(self.r, dtype=float)),
-                *np.sqrt(2.0 * np.asarray(self.q_t, dtype=float)),
+                *np.sqrt(2.0 * q_t),
                 np.sqrt(self.q_q),
                 np.sqrt(self.q_tq),
                 self.tension_slack,
                 *np.sqrt(2.0 * np.asarray(self.q_i, dtype=float)),
-                1.0 if self.tracking == "angular_momentum" else 0.0,
-                0.0,
+                1.0 if paper else 0.0,
+                0.0 if paper else np.sqrt(2.0 * float(axis**2 @ q_w)),
+                0.0 if paper else np.sqrt(2.0 * float(axis**2 @ q_t)),
             ],
             dtype=float,
         )
@@ -273,7 +328,8 @@ class MorphingOcp:
         n = self.horizon
         x0 = np.asarray(x_init, dtype=float)
         r_now = np.sqrt(x0[RADII_SQ])
-        k = np.arange(n)[:, None]
+        # both r_k and r_{k+1} are >= the smallest radius reachable by stage k + 1
+        k = np.arange(1, n + 1)[:, None]
         r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
         rate = 2.0 * lim.radius_step_max_m * r_low  # (n, 3) [m^2] per step
         lo = np.full((n, NX + NU), -np.inf)
@@ -307,13 +363,17 @@ class MorphingOcp:
 
 
 def build_ocp(
-    horizon: int, dt_s: float, limits: MorphingLimits, gap_next_minus_f: bool = False
+    horizon: int,
+    dt_s: float,
+    limits: MorphingLimits,
+    gap_next_minus_f: bool = False,
+    integrator: str = "euler",
 ) -> MorphingOcp:
     """Build the stage-wise OCP of the module docstring (SX, built once).
 
     ``gap_next_minus_f`` writes the gaps as ``x_{k+1} - F(x_k, u_k)`` (fatrop's
     structure detection requires it); the default ``F(x_k, u_k) - x_{k+1}`` is the
-    ``[A B -I]`` block form hpipm expects.
+    ``[A B -I]`` block form hpipm expects. ``integrator`` is F's scheme.
     """
     if horizon < 2:
         raise ValueError(f"horizon must be >= 2, got {horizon}")
@@ -326,19 +386,27 @@ def build_ocp(
     scales = p[layout.weights]
     s_w, s_r, s_t = scales[0:3], scales[3:6], scales[6:9]
     s_q, s_tq, slack_weight = scales[9], scales[10], scales[11]
-    s_i, momentum_blend = scales[12:15], scales[15]
+    s_i, paper_blend, s_spin, s_spin_t = scales[12:15], scales[15], scales[16], scales[17]
     i_nom = p[layout.nominal_inertia]
+    target = p[layout.momentum_target]
+    axis, momentum_norm, spin_ref = target[0:3], target[3], target[4]
     inertia_map = np.linalg.inv(limits.radius_squared_matrix)
     m = ca.DM(inertia_map)
-    dynamics = dynamics_function(dt_s, inertia_map)
+    dynamics = dynamics_function(dt_s, inertia_map, integrator)
 
     xs = [ca.SX.sym(f"x{k}", NX) for k in range(horizon + 1)]
     us = [ca.SX.sym(f"u{k}", NU) for k in range(horizon)]
 
-    def tracked_rate(x: ca.SX) -> ca.SX:
-        """w (paper), or I w / I_nom (tracking "angular_momentum"), blended by a parameter."""
-        inertia = ca.mtimes(m, x[RADII_SQ])
-        return x[W] * (1.0 - momentum_blend + momentum_blend * inertia / i_nom)
+    def rate_error(x: ca.SX) -> ca.SX:
+        """Paper: ``w - w_ref``; momentum: ``(I w - |H| e) / I_nom`` (blended by a parameter)."""
+        momentum = ca.mtimes(m, x[RADII_SQ]) * x[W]
+        paper = x[W] - w_ref
+        return paper_blend * paper + (1.0 - paper_blend) * (momentum - momentum_norm * axis) / i_nom
+
+    def spin_error(x: ca.SX) -> ca.SX:
+        """Rate of a spin about e with this configuration, minus the reachable target."""
+        axis_inertia = ca.dot(axis * axis, ca.mtimes(m, x[RADII_SQ])) + paper_blend
+        return momentum_norm / axis_inertia - spin_ref
 
     def attitude_residual(x: ca.SX, k: int, scale: ca.SX) -> ca.SX:
         qr = q_ref[:, k]
@@ -352,7 +420,8 @@ def build_ocp(
         x, u = xs[k], us[k]
         z_parts += [x, u]
         residuals += [
-            s_w * (tracked_rate(x) - w_ref),
+            s_w * rate_error(x),
+            s_spin * spin_error(x),
             attitude_residual(x, k, s_q),
             s_i * (ca.mtimes(m, x[RADII_SQ]) - i_nom) / i_nom,
             s_r * ca.mtimes(m, u[0:3]),  # dI = M ds, weighed as the paper weighs dI
@@ -363,7 +432,11 @@ def build_ocp(
         g_parts += [-gap if gap_next_minus_f else gap, x[1] ** 2 + x[2] ** 2 + u[3]]
     x_n = xs[horizon]
     z_parts.append(x_n)
-    residuals += [s_t * (tracked_rate(x_n) - w_ref), attitude_residual(x_n, horizon, s_tq)]
+    residuals += [
+        s_t * rate_error(x_n),
+        s_spin_t * spin_error(x_n),
+        attitude_residual(x_n, horizon, s_tq),
+    ]
     residual = ca.vertcat(*residuals)
     return MorphingOcp(
         horizon=horizon,
@@ -384,20 +457,52 @@ def build_ocp(
     )
 
 
+def momentum_target(
+    w_ref_rad_s: ArrayLike,
+    momentum_norm: float,
+    axis_inertia_range_kg_m2: tuple[float, float] | None = None,
+) -> tuple[NDArray[np.float64], float]:
+    """(reference axis e, reachable spin rate about e) of the momentum objective.
+
+    ``e = w_ref / |w_ref|`` (0 when w_ref has no axis). A spin about e has the rate
+    ``|H| / (e' I e)``: the reference's ``|w_ref|`` is clipped to what the moments
+    within reach, ``axis_inertia_range_kg_m2`` (min, max), can give.
+    """
+    w_ref = np.asarray(w_ref_rad_s, dtype=float).reshape(3)
+    speed = float(np.linalg.norm(w_ref))
+    if not np.isfinite(momentum_norm) or momentum_norm < 0.0:
+        raise ValueError(f"momentum_norm must be finite and >= 0, got {momentum_norm}")
+    axis = w_ref / speed if speed > _AXIS_EPS else np.zeros(3)
+    if axis_inertia_range_kg_m2 is not None and speed > _AXIS_EPS:
+        low, high = axis_inertia_range_kg_m2
+        speed = float(np.clip(speed, momentum_norm / high, momentum_norm / low))
+    return axis, speed
+
+
 def parameter_vector(
     layout: ParameterLayout,
     w_ref_rad_s: ArrayLike,
     q_ref_wxyz: ArrayLike,
     weights: MpcWeights,
     nominal_inertia_kg_m2: ArrayLike,
+    *,
+    momentum_norm: float = 0.0,
+    axis_inertia_range_kg_m2: tuple[float, float] | None = None,
 ) -> NDArray[np.float64]:
-    """Numeric ``p``: reference rate, attitude references (N+1, 4), weights, nominal inertia."""
+    """Numeric ``p``: references (N+1 attitudes), weights, nominal inertia, momentum target.
+
+    ``momentum_norm`` is |H| = |I_0 w_0| of the measured state [kg m^2/s] (the
+    momentum objective's target is ``|H| e``).
+    """
     q_ref = np.asarray(q_ref_wxyz, dtype=float).reshape(layout.horizon + 1, 4)
+    axis, speed = momentum_target(w_ref_rad_s, momentum_norm, axis_inertia_range_kg_m2)
     return np.concatenate(
         [
             np.asarray(w_ref_rad_s, dtype=float).reshape(3),
             q_ref.ravel(),
-            weights.residual_scales(),
+            weights.residual_scales(axis),
             np.asarray(nominal_inertia_kg_m2, dtype=float).reshape(3),
+            axis,
+            [float(momentum_norm), speed],
         ]
     )
