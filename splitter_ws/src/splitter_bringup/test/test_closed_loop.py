@@ -9,33 +9,24 @@ record the gap (explained in the splitter_mpc.core.mpc docstring) and will flag 
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
-from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.core.metrics import flight_summary
 from splitter_bringup.core.scenario import load_scenario
-from splitter_mpc.core.controller import MorphingController
-from splitter_mpc.core.mpc import PAPER_MPC_SETTINGS, MpcSettings
+from splitter_mpc.core.mpc import MpcSettings
 from splitter_mpc.core.solvers import SolverOptions
 from splitter_sim.core.model import RobotModel
 
 pytestmark = pytest.mark.slow
 MODEL = RobotModel()
-# Compiled derivative code (cached on disk; the SX virtual machine if there is no gcc).
-# Lockstep: no solve deadline.
-MPC = MpcSettings(options=SolverOptions(max_time_s=60.0))
-PAPER_MPC = replace(PAPER_MPC_SETTINGS, options=SolverOptions(max_time_s=60.0))
+# SX virtual machine: no compiler and no cache needed; the same solutions.
+MPC = MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))  # lockstep: no deadline
 
 
-def run(name: str, variant: str, paper: bool = False, **kwargs):
+def run(name: str, variant: str, **kwargs):
     scenario = load_scenario(name, variant)
-    if paper:  # the paper's MPC: J_w on w, Euler, N = 50 x 10 ms
-        config = controller_config(scenario, PAPER_MPC)
-        config = replace(config, weights=replace(config.weights, objective="paper"))
-        kwargs["controller"] = MorphingController(MODEL, config)
     series = run_closed_loop(scenario, mpc=MPC, **kwargs)
     metrics = flight_summary(
         series,
@@ -48,9 +39,7 @@ def run(name: str, variant: str, paper: bool = False, **kwargs):
 
 @pytest.fixture(scope="module")
 def spin():
-    runs = {v: run("spin_stabilization", v) for v in ("mpc", "open_loop")}
-    runs["paper"] = run("spin_stabilization", "mpc", paper=True)
-    return runs
+    return {v: run("spin_stabilization", v) for v in ("mpc", "open_loop")}
 
 
 @pytest.fixture(scope="module")
@@ -100,23 +89,11 @@ def test_final_spin_rate_is_angular_momentum_over_inertia(spin) -> None:
     assert metrics["wy_final"] == pytest.approx(expected, rel=0.02)
 
 
-def test_momentum_objective_turns_faster_and_closer_than_the_papers_mpc(spin) -> None:
-    """Default (momentum objective, 2.5 s horizon) against the paper's MPC, same plant."""
-    _, ours = spin["mpc"]
-    _, paper = spin["paper"]
-    assert ours["time_constant_s"] < 0.5 * paper["time_constant_s"]  # measured 1.3 s vs 3.9 s
-    assert ours["settling_time_s"] < paper["settling_time_s"]
-    assert max(ours["residual_wx"], ours["residual_wz"]) < 0.5 * max(
-        paper["residual_wx"], paper["residual_wz"]
-    )
-    # w_y ends at the reachable rate closest to w_ref = 1: |H| / Iyy_max (r_x = 3.0 m)
-    assert ours["wy_final"] == pytest.approx(179.92 / 162.95, abs=0.01)
-
-
 @pytest.mark.xfail(
     strict=True,
-    reason="the nutation left after the turn decays at ~w_y sqrt((Iyy - Izz) / Ixx) ~ 1 rad/s "
-    "at best: residual |w_x| ~ 0.03 rad/s at 8 s (issue 4 asks 0.01); splitter_mpc.core.mpc",
+    reason="paper-faithful MPC (N = 50 x 10 ms, Table I weights, correct gyroscopic sign, "
+    "hardware limits) turns H into body y slower than the paper reports; the momentum "
+    "objective option turns 3x faster but leaves a ~0.03 rad/s nutation: splitter_mpc.core.mpc",
 )
 def test_spin_stabilization_meets_the_papers_figures(spin) -> None:
     _, metrics = spin["mpc"]

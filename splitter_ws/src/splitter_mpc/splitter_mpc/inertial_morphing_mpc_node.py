@@ -73,13 +73,16 @@ PARAMETERS = (
         "tension_slack_weight", 100.0, "L1 penalty of a tension shortfall [s^2/rad^2]", 0.0, 1e9
     ),
     ParameterSpec("horizon", 50, "prediction horizon N [steps]", 2, 1000),
-    ParameterSpec("dt_s", 0.05, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
+    ParameterSpec("dt_s", 0.01, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
     ParameterSpec(
-        "integrator", "rk4", "prediction model integrator (paper: euler)", choices=INTEGRATORS
+        "integrator",
+        "euler",
+        "prediction model integrator (euler: the paper's)",
+        choices=INTEGRATORS,
     ),
     ParameterSpec(
         "objective",
-        "momentum",
+        "paper",
         "how q_w/q_t weigh the rate: momentum direction + reachable spin, or paper (w - w_ref)",
         choices=OBJECTIVES,
     ),

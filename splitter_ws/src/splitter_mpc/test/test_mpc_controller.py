@@ -21,13 +21,16 @@ Q0 = np.array([1.0, 0.0, 0.0, 0.0])
 def mpc() -> InertialMorphingMpc:
     # no wall-time deadline: a loaded CI machine must not turn solves late
     return InertialMorphingMpc(
-        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))
+        MODEL,
+        MpcSettings(
+            dt_s=0.05, integrator="rk4", options=SolverOptions(compile=False, max_time_s=10.0)
+        ),
     )
 
 
 def controller(mpc: InertialMorphingMpc, **config) -> MorphingController:
     mpc.reset()
-    ctl = MorphingController(MODEL, ControllerConfig(**config), mpc)
+    ctl = MorphingController(MODEL, ControllerConfig(mpc=mpc.settings, **config), mpc)
     ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
     return ctl
 
@@ -41,7 +44,7 @@ def test_replans_on_the_100_ms_grid_and_plays_the_plan_back(mpc) -> None:
     first = tick(ctl, 0)
     assert ctl.status.replanned and ctl.status.solve_ok and ctl.status.active
     plan = ctl.plan
-    assert plan.dt_ns == 50 * MS  # the default prediction step
+    assert plan.dt_ns == 50 * MS  # the long-horizon option's prediction step
     # each 10 ms tick commands the plan's inertia at the end of the tick (linear in a step)
     np.testing.assert_allclose(first, 0.8 * plan.inertia[0] + 0.2 * plan.inertia[1])
     for t_ms in range(10, 100, 10):
@@ -126,6 +129,7 @@ def test_config_rejects_inconsistent_periods() -> None:
         ControllerConfig(replan_period_s=0.015)
     with pytest.raises(ValueError, match="multiple"):  # 100 ms is not a whole number of steps
         ControllerConfig(mpc=MpcSettings(dt_s=0.03))
+    assert ControllerConfig().mpc.dt_s == 0.01 and ControllerConfig().weights.objective == "paper"
     with pytest.raises(ValueError, match="nominal"):
         ControllerConfig(nominal_inertia_kg_m2=(1.0, -1.0, 1.0))
 

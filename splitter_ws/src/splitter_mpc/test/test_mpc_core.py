@@ -29,7 +29,10 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 @pytest.fixture(scope="module")
 def mpc() -> InertialMorphingMpc:
     return InertialMorphingMpc(
-        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=10.0))
+        MODEL,
+        MpcSettings(
+            dt_s=0.05, integrator="rk4", options=SolverOptions(compile=False, max_time_s=10.0)
+        ),
     )
 
 

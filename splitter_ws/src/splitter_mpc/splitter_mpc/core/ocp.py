@@ -184,11 +184,11 @@ class MpcWeights:
     """The paper's diagonal weights (Tables I and II), the objective they weigh, additions.
 
     * ``objective``: how Q_w and Q_t are applied (module docstring, "Cost").
-      ``"momentum"`` (default): on the direction of the body angular momentum
+      ``"momentum"`` (option): on the direction of the body angular momentum
       ``(I w - |H| e) / I_nom`` and on the spin rate the configuration gives about
       the reference axis ``|H| / (e' I e) - w_spin``; it coincides with the paper's
       J_w at a spin about e and cannot be lowered by inflating the inertia.
-      ``"paper"``: the paper's J_w on the body rate ``w - w_ref``.
+      ``"paper"`` (default): the paper's J_w on the body rate ``w - w_ref``.
     * ``q_i``: weight of ``((I - I_nom) / I_nom)^2`` per stage (off by default),
       which pulls the limbs and the tether toward the nominal configuration;
     * ``tension_slack``: L1 penalty of a tether-tension shortfall [s^2/rad^2 per
@@ -203,7 +203,7 @@ class MpcWeights:
     q_tq: float = 0.0
     tension_slack: float = 100.0
     q_i: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    objective: str = "momentum"
+    objective: str = "paper"
 
     def __post_init__(self) -> None:
         if len(self.q_w) != 3 or len(self.r) != 3 or len(self.q_t) != 3 or len(self.q_i) != 3:
