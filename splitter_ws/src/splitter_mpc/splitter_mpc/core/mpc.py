@@ -39,15 +39,15 @@ residual_wx rad/s  0.004    0.11    0.033
 residual_wz rad/s  0.006    0.28    0.011
 wy_final rad/s     1.28     1.07    1.108
 time_constant s    1.3      3.9     1.27
-settling_time s    2.8      > 5     5.0
+settling_time s    2.8      6.9     5.0
 =================  =======  ======  ========
 
 The momentum option turns as fast as the paper reports but does NOT meet issue
 4's 0.01 rad/s residual, and its solves are slow (fatrop ~46 iterations, median
 176 ms / p99 650 ms compiled on the loaded 2-core machine: above the 100 ms
 re-plan period, so it is usable in lockstep only with a generous
-``max_solve_time_s``); hence it is not the default. Its residual: after the turn a nutation of ~0.1 rad/s remains and
-decays slowly. Near a spin about y its frequency is
+``max_solve_time_s``); hence it is not the default. Its residual: after the
+turn a nutation of ~0.1 rad/s remains and decays slowly. Near a spin about y its frequency is
 ``w_y sqrt((Iyy - Izz)(Iyy - Ixx) / (Ixx Izz))`` ~ 1 rad/s at most (|Iyy - Izz| <= Ixx
 <= 1.9), and the authority to correct it, ``dh_x/dt = h_y h_z (1/Izz - 1/Iyy)``,
 vanishes with the error itself: it decays at best like exp(-t) with a 6 s
