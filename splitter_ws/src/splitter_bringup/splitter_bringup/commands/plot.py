@@ -10,6 +10,7 @@ Fig. 12, lunar jumping) is drawn here, from the series' own arrays.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from pathlib import Path
@@ -17,6 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from splitter_bringup.core.series import RunSeries
+
+MIN_LABELLED_PHASE_S = 0.2  # [s] shorter gait phases get a line but no label
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -89,7 +92,18 @@ def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
         changes = [i for i in range(1, len(t)) if series.gait_phase[i] != series.gait_phase[i - 1]]
         for i in changes:
             ax.axvline(t[i], color="grey", alpha=0.4)
-            ax.text(t[i], ax.get_ylim()[1], series.gait_phase[i], rotation=90, fontsize=7, va="top")
+        # label the phases that last (a cartwheeling hemi taps the ground many times)
+        bounds = [0, *changes, len(t)]
+        for start, end in itertools.pairwise(bounds):
+            if t[end - 1] - t[start] >= MIN_LABELLED_PHASE_S:
+                ax.text(
+                    t[start],
+                    ax.get_ylim()[1],
+                    series.gait_phase[start],
+                    rotation=90,
+                    fontsize=7,
+                    va="top",
+                )
     ax.set_xlabel("t [s]")
     ax.grid(True, alpha=0.3)
     fig.suptitle(title)
