@@ -1,0 +1,119 @@
+"""The launcher as a user runs it: its processes, Ctrl-C/SIGTERM, a node that dies.
+
+Also checks the ROS launch file for full installs against the launcher's graph
+(it cannot run here: launch and launch_ros are not installable on these machines).
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from splitter_bringup.core.graph_config import graph_nodes
+from splitter_bringup.core.scenario import load_scenario
+from splitter_msgs_py.environment import ros_environment
+
+ROOT = Path(__file__).resolve().parents[1]
+SPLITTER = Path(sys.executable).with_name("splitter")
+
+
+def launch_file_executables() -> dict[str, tuple[str, str]]:
+    path = ROOT / "splitter_ws/src/splitter_bringup/launch/splitter.launch.py"
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "EXECUTABLES":
+            return ast.literal_eval(node.value)
+    raise AssertionError("EXECUTABLES not found in the launch file")
+
+
+def test_launch_file_starts_every_node_of_the_graph_by_its_console_script(tmp_path) -> None:
+    executables = launch_file_executables()
+    nodes = graph_nodes(load_scenario("lunar_jumping"), bag_dir=tmp_path)
+    assert {n.name for n in nodes} == set(executables)
+    for node in nodes:
+        package, script = executables[node.name]
+        setup = (ROOT / f"splitter_ws/src/{package}/setup.py").read_text()
+        module = node.entry.split(":")[0]
+        assert re.search(rf'"{script} = {re.escape(module)}:main"', setup), (package, script)
+
+
+def start_launcher(out: Path, domain_id: int) -> subprocess.Popen:
+    env = ros_environment(domain_id=domain_id)
+    return subprocess.Popen(
+        [str(SPLITTER), "launch", "spin_stabilization", "--out", str(out), "--no-record"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+
+
+def node_pids(out: Path) -> dict[str, int]:
+    """PIDs of the node processes this launch started (their params files are in ``out``)."""
+    pids = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        for arg in cmdline:
+            text = arg.decode(errors="replace")
+            if text.startswith(str(out / "params")):
+                pids[Path(text).stem] = int(entry.name)
+    return pids
+
+
+def wait_for_stepping(out: Path, timeout_s: float = 120.0) -> None:
+    log = out / "logs" / "simulator.log"
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if log.exists() and "stepping starts" in log.read_text():
+            return
+        time.sleep(0.2)
+    raise AssertionError("the simulator never started stepping")
+
+
+@pytest.mark.slow
+def test_sigterm_stops_every_node_cleanly(tmp_path: Path) -> None:
+    launcher = start_launcher(tmp_path, int(os.environ["ROS_DOMAIN_ID"]) + 10)
+    try:
+        wait_for_stepping(tmp_path)
+        assert set(node_pids(tmp_path)) == {
+            "inertial_morphing_mpc",
+            "ik_tether_allocator",
+            "gait_phase_manager",
+            "simulator",
+        }
+        launcher.send_signal(signal.SIGTERM)
+        output, _ = launcher.communicate(timeout=60)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 130, output
+    assert node_pids(tmp_path) == {}, "a node outlived the launcher"
+    for name in ("inertial_morphing_mpc", "ik_tether_allocator", "gait_phase_manager"):
+        assert re.search(rf"{name}\s+exit code 0", output), output[-2000:]
+
+
+@pytest.mark.slow
+def test_a_node_that_dies_fails_the_launch(tmp_path: Path) -> None:
+    launcher = start_launcher(tmp_path, int(os.environ["ROS_DOMAIN_ID"]) + 11)
+    try:
+        wait_for_stepping(tmp_path)
+        os.kill(node_pids(tmp_path)["ik_tether_allocator"], signal.SIGKILL)
+        output, _ = launcher.communicate(timeout=60)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 1, output
+    assert "ik_tether_allocator exited with code -9" in output
+    assert node_pids(tmp_path) == {}, "a node outlived the launcher"
