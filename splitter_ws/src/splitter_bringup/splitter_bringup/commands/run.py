@@ -72,12 +72,12 @@ def _run_variant(args: argparse.Namespace, scenario_name: str, variant: str) -> 
         return run_graph(scenario_name, variant, args.out)
     from splitter_bringup.core.closed_loop import run_closed_loop
     from splitter_mpc.core.mpc import MpcSettings
-    from splitter_mpc.core.solvers import SolverOptions
+    from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 
     scenario = load_scenario(scenario_name, variant)
     mpc = MpcSettings(
         solver=args.solver or MpcSettings().solver,
-        options=SolverOptions(compile=not args.no_compile),
+        options=SolverOptions(compile=not args.no_compile, max_time_s=LOCKSTEP_MAX_TIME_S),
     )
     return run_closed_loop(scenario, _progress_printer(variant), mpc=mpc)
 

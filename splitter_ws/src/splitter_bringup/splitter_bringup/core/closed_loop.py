@@ -45,6 +45,7 @@ from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
 from splitter_mpc.core.mpc import MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
+from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 from splitter_sim.core.model import RobotModel
 from splitter_sim.core.simulator import Simulator
 
@@ -68,7 +69,9 @@ def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> Con
     """The MPC configuration of a scenario: the node's parameters, as a core object."""
     c = scenario.controller
     weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq)
-    return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc or MpcSettings())
+    if mpc is None:
+        mpc = MpcSettings(options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
+    return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc)
 
 
 def run_closed_loop(

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from splitter_bringup.core.scenario import Scenario
+from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
 from splitter_msgs_py import names
 
 
@@ -73,10 +74,16 @@ def simulator_parameters(
     }
 
 
-def mpc_parameters(scenario: Scenario) -> dict:
-    """Inertial-morphing MPC node parameters of a scenario."""
+def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
+    """Inertial-morphing MPC node parameters of a scenario.
+
+    In real time the node keeps its own wall-time cap (a late plan is dropped).
+    """
     c = scenario.controller
+    # lockstep: the simulator waits for the MPC, so a slow solve is waited for, not dropped
+    extra = {} if real_time else {"max_solve_time_s": LOCKSTEP_MAX_TIME_S}
     return {
+        **extra,
         "use_sim_time": True,
         "enabled": bool(c.enabled),
         "q_w": _floats(c.q_w),
@@ -133,7 +140,7 @@ def graph_nodes(
             "inertial_morphing_mpc",
             "splitter_mpc.inertial_morphing_mpc_node:main",
             "splitter_mpc.inertial_morphing_mpc_node:InertialMorphingMpcNode",
-            mpc_parameters(scenario),
+            mpc_parameters(scenario, real_time),
         ),
         NodeLaunch(
             "ik_tether_allocator",

@@ -42,12 +42,17 @@ SOLVERS = ("fatrop", "ipopt", "sqp", "rti")
 _GN_REGULARISATION = 1e-8  # added to the Gauss-Newton Hessian (states without a cost)
 
 
+# [s] wall-time cap of a solve in lockstep and library runs: there the simulator waits
+# for the controller, so a slow solve is waited for and results never depend on load.
+LOCKSTEP_MAX_TIME_S = 60.0
+
+
 @dataclass(frozen=True)
 class SolverOptions:
     """Caps and tolerances shared by the back-ends."""
 
     max_iter: int = 30
-    max_time_s: float = 0.08  # [s] wall time per solve
+    max_time_s: float = 0.08  # [s] wall time per solve (real time: a late plan is dropped)
     tol: float = 1e-8  # optimality (interior point) / step size (SQP, scaled)
     usable_infeasibility: float = 1e-4  # largest constraint violation of an executable plan
     # sqp/rti iterates carry the linearisation error of the dynamics (RTI's premise):
