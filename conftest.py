@@ -14,7 +14,11 @@ import pytest
 
 from splitter_msgs_py.environment import apply_ros_environment
 
-TEST_DOMAIN_ID = 100 + os.getpid() % 100
+# Domains 0-101 are the ones ROS 2 documents as safe on Linux (higher ones reach the
+# ephemeral port range, and above 232 Fast DDS calls exit(1): "port number is too
+# high"). Tests that need a second domain add at most MAX_DOMAIN_OFFSET to this one.
+MAX_DOMAIN_OFFSET = 20
+TEST_DOMAIN_ID = 1 + os.getpid() % (101 - MAX_DOMAIN_OFFSET)
 apply_ros_environment(domain_id=TEST_DOMAIN_ID)
 os.environ.setdefault("MPLBACKEND", "Agg")
 

@@ -140,7 +140,7 @@ def test_replaying_the_bag_into_the_mpc_reproduces_its_setpoints(recorded_graph)
     from splitter_bringup.core.graph_config import mpc_parameters
 
     context = rclpy.Context()
-    rclpy.init(context=context, domain_id=TEST_DOMAIN_ID + 50)
+    rclpy.init(context=context, domain_id=TEST_DOMAIN_ID + 12)  # <= MAX_DOMAIN_OFFSET
     try:
         result = replay_mpc(bag_dir, context, parameters=mpc_parameters(scenario))
     finally:

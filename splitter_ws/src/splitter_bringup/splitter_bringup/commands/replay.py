@@ -29,8 +29,9 @@ def main(args: argparse.Namespace) -> int:
     """Replay, print the comparison, exit 1 when it exceeds the tolerance."""
     from splitter_bringup.replay import replay_mpc
 
-    # A private domain: the replay must not talk to a graph that may be running.
-    apply_ros_environment(domain_id=int(os.environ.get("SPLITTER_REPLAY_DOMAIN_ID", "201")))
+    # A private domain (215-232 are safe on Linux): the replay must not talk to a graph
+    # that may be running.
+    apply_ros_environment(domain_id=int(os.environ.get("SPLITTER_REPLAY_DOMAIN_ID", "215")))
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
