@@ -39,7 +39,7 @@ def run(name: str, variant: str, **kwargs):
 
 @pytest.fixture(scope="module")
 def spin():
-    return {v: run("spin_stabilization", v) for v in ("mpc", "open_loop")}
+    return {v: run("spin_stabilization", v) for v in ("mpc", "paper_mpc", "open_loop")}
 
 
 @pytest.fixture(scope="module")
@@ -89,17 +89,22 @@ def test_final_spin_rate_is_angular_momentum_over_inertia(spin) -> None:
     assert metrics["wy_final"] == pytest.approx(expected, rel=0.02)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="paper-faithful MPC (N = 50 x 10 ms, Table I weights, correct gyroscopic sign, "
-    "hardware limits) turns H into body y slower than the paper reports; the momentum "
-    "objective option turns 3x faster but leaves a ~0.03 rad/s nutation: splitter_mpc.core.mpc",
-)
 def test_spin_stabilization_meets_the_papers_figures(spin) -> None:
+    """Issue 4: |w_x|, |w_z| < 0.01 rad/s by 8 s, spin about y, settled within 3 s."""
     _, metrics = spin["mpc"]
     assert metrics["residual_wx"] < 0.01 and metrics["residual_wz"] < 0.01
     assert metrics["spin_alignment_final"] >= 0.99
     assert metrics["settling_time_s"] <= 3.0
+
+
+def test_the_papers_formulation_turns_slower_than_the_momentum_one(spin) -> None:
+    """The paper's 0.5 s horizon on ``w - w_ref`` inflates the inertia and turns slowly
+    (splitter_mpc.core.mpc): the reason the scenario flies the momentum formulation."""
+    _, paper = spin["paper_mpc"]
+    _, ours = spin["mpc"]
+    assert paper["time_constant_s"] > 1.5 * ours["time_constant_s"]
+    assert paper["residual_wz"] > 10.0 * ours["residual_wz"]
+    assert ours["spin_alignment_final"] > paper["spin_alignment_final"] > 0.9
 
 
 def test_quaternion_tracking_needs_a_wider_inertia_range(orientation) -> None:

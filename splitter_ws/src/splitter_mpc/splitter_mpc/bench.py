@@ -75,10 +75,10 @@ def run_benchmark(
     config = controller_config(scenario, settings)
     print(f"building {solver} (first start compiles, then cached) ...", file=sys.stderr)
     started = time.monotonic()
-    ours = MorphingController(model, config, InertialMorphingMpc(model, settings))
+    ours = MorphingController(model, config, InertialMorphingMpc(model, config.mpc))
     build_s = time.monotonic() - started
     print("building the Opti + IPOPT baseline ...", file=sys.stderr)
-    baseline = MorphingController(model, config, OptiBaselineMpc(model, settings))
+    baseline = MorphingController(model, config, OptiBaselineMpc(model, config.mpc))
     runs = {}
     for label, controller in (("baseline", baseline), (solver, ours)):
         runs[label] = run_closed_loop(

@@ -91,6 +91,9 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
         "q_t": _floats(c.q_t),
         "q_q": float(c.q_q),
         "q_tq": float(c.q_tq),
+        "objective": c.objective,
+        "dt_s": float(c.dt_s),
+        "integrator": c.integrator,
     }
 
 

@@ -62,8 +62,11 @@ class OptiBaselineMpc:
 
         def rate_error(k: int):
             paper = w[:, k] - self._p_w_ref
-            momentum = (inertia[:, k] * w[:, k] - self._p_h_norm * self._p_axis) / self._p_i_nom
-            return self._p_paper * paper + (1 - self._p_paper) * momentum
+            axis = self._p_axis
+            momentum = (inertia[:, k] * w[:, k] - self._p_h_norm * axis) / self._p_i_nom
+            perpendicular = w[:, k] - axis * ca.dot(axis, w[:, k])
+            spin = perpendicular + axis * ca.dot(axis, momentum)
+            return self._p_paper * paper + (1 - self._p_paper) * spin
 
         def spin_error(k: int):
             axis_inertia = ca.dot(self._p_axis**2, inertia[:, k]) + self._p_paper

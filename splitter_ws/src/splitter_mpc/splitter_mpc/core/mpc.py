@@ -6,18 +6,19 @@ bound (measured state, radius-rate limits), and the primal-dual solution of the
 last solve, which it shifts by the elapsed number of prediction steps to
 warm-start the next one (the tail is rolled out with zero control). ROS-free.
 
-Two configurations (``MpcSettings`` + ``MpcWeights.objective``)
-----------------------------------------------------------------
-* **paper** (the default: ``MpcSettings()``, ``MpcWeights()``; section VI, Table I):
-  N = 50 x 10 ms, explicit Euler, J_w on ``w - w_ref``, with the correct
-  gyroscopic sign and the hardware limits.
-* **momentum** (option: ``MOMENTUM_MPC_SETTINGS`` + ``objective="momentum"``; node
-  parameters ``objective: momentum, integrator: rk4, dt_s: 0.05``): N = 50 x 50 ms
-  (2.5 s) with RK4 (inertia linear over a step, as played back), and the same
-  Q_w / Q_t weighing the *direction of the body angular momentum*
-  ``(I w - |H| e) / I_nom`` (e = w_ref / |w_ref|, |H| measured) plus the spin rate
-  the configuration gives about e, ``|H| / (e' I e)``, against the reachable
-  rate ``clip(|w_ref|, |H| / I_e,max, |H| / I_e,min)``. At a spin about e it is the
+Two formulations (``MpcSettings`` + ``MpcWeights.objective``)
+-------------------------------------------------------------
+* **paper** (``MpcSettings()``, ``MpcWeights()``; section VI, Table I): N = 50 x
+  10 ms, explicit Euler, J_w on ``w - w_ref``, with the correct gyroscopic sign
+  and the hardware limits. The spin_stabilization ``paper_mpc`` variant.
+* **momentum** (``MOMENTUM_MPC_SETTINGS`` + ``objective="momentum"``; node
+  parameters ``objective: momentum, dt_s: 0.05``; the scenarios' ``mpc``
+  variant of spin_stabilization): N = 50 x 50 ms (2.5 s) with the same Euler
+  model and the paper's weights on what a spin about ``e = w_ref / |w_ref|`` means:
+  the body rate *across* e, ``(1 - e e') w`` (zero at any spin about e), the body
+  momentum *along* e, ``e'(I w - |H| e) / I_nom`` (tells +e from -e), and the spin
+  rate the configuration gives about e, ``|H| / (e' I e)``, against the reachable
+  ``clip(|w_ref|, |H| / I_e,max, |H| / I_e,min)``. At a spin about e it is the
   paper's J_w; elsewhere it cannot be lowered by inflating the inertia
   (``h = I w`` only rotates in the body, ``|h| = |H|``).
 
@@ -26,35 +27,32 @@ H is conserved; the body is nearly axisymmetric about x (Ixx = 0.48 << Iyy =
 Izz = 141.4), and aligning H with body y means rotating the body ~135 deg about
 x, driven by ``w_x = h_x / Ixx`` which only the asymmetry ``Iyy - Izz`` (<= Ixx)
 builds: ``phi'' = -(|H|^2 / 2)(1/Izz - 1/Iyy)/Ixx sin(2 phi)``, a pendulum whose
-stiffness the limbs switch (|phi''| <= ~0.8 rad/s^2). Over the paper's 0.5 s
-the J_w penalty on that w_x and the quick gain of inflating the inertia
-(``w = H / I``) win, so the paper's MPC inflates and turns slowly. Measured
-(library loop, same plant, allocator, gait machine):
+stiffness the limbs switch (|phi''| <= ~0.8 rad/s^2) and whose rate the limbs
+rescale (``w_x = h_x / Ixx``, Ixx from 0.14 to 1.9). The manoeuvre takes ~2 s:
+the paper's 0.5 s horizon cannot see it, and its J_w on ``w_y - 1`` rewards
+inflating the inertia (``w = H / I``), so the paper's MPC inflates and turns
+slowly. The momentum formulation sees the whole turn and only asks for what is
+reachable. Measured (library loop, same plant, allocator, gait machine):
 
 =================  =======  ======  ========
 metric             paper's  paper   momentum
-                   figure   mode    option
+                   figure   mode    (mpc)
 =================  =======  ======  ========
-residual_wx rad/s  0.004    0.11    0.033
-residual_wz rad/s  0.006    0.28    0.011
-wy_final rad/s     1.28     1.07    1.108
-time_constant s    1.3      3.9     1.27
-settling_time s    2.8      6.9     5.0
+residual_wx rad/s  0.004    0.11    0.0036
+residual_wz rad/s  0.006    0.28    0.0023
+wy_final rad/s     1.28     1.07    1.106
+alignment |wy|/|w|  -       0.971   1.000
+time_constant s    1.3      3.9     1.57
+settling_time s    2.8      6.9     2.96
 =================  =======  ======  ========
 
-The momentum option turns as fast as the paper reports but does NOT meet issue
-4's 0.01 rad/s residual, and its solves are slow (fatrop ~46 iterations, median
-176 ms / p99 650 ms compiled on the loaded 2-core machine: above the 100 ms
-re-plan period, so it is usable in lockstep only with a generous
-``max_solve_time_s``); hence it is not the default. Its residual: after the
-turn a nutation of ~0.1 rad/s remains and decays slowly. Near a spin about y its frequency is
-``w_y sqrt((Iyy - Izz)(Iyy - Ixx) / (Ixx Izz))`` ~ 1 rad/s at most (|Iyy - Izz| <= Ixx
-<= 1.9), and the authority to correct it, ``dh_x/dt = h_y h_z (1/Izz - 1/Iyy)``,
-vanishes with the error itself: it decays at best like exp(-t) with a 6 s
-period. Measured variants: a weaker spin-rate term (x0.1) gives 0.006/0.013 but
-the tether reels in and w_y settles only after 6-7 s; terminal weights x10 make
-fatrop fail. The plan predicts the plant well (w within 0.005 rad/s 0.5 s
-ahead), so the gap is the objective's trade-off, not model error.
+Weighing the rate across e (not the momentum ``h_x / I_nom``) matters: with
+``h_x / I_nom`` the plan shrinks Ixx to turn faster (``w_x = h_x / Ixx``, up to
+3 rad/s) and leaves a 0.03 rad/s nutation that decays over seconds; with the
+body rate it damps the nutation as it turns. The prediction model is not the
+limit: RK4 over 25 x 0.1 s gives 0.0033 / 0.0025 rad/s and 3.0 s; explicit
+Euler's derivative code is several times smaller and faster to solve (a step's
+rate error ``dt |w|`` <= 0.1 rad is fed back every 0.1 s).
 
 w_y is not set by the reference: a final spin about y is ``|H| / Iyy``
 (|H| = 179.9 kg m^2/s). w_ref = 1 needs Iyy = 180 > I_max = 162.9, so the
@@ -110,7 +108,7 @@ class MpcSettings:
     """Horizon, integrator, solver and hardware margins.
 
     Default: the paper's (Table I, section VI), N = 50 steps of 10 ms with explicit
-    Euler. :data:`MOMENTUM_MPC_SETTINGS` is the long-horizon option (50 x 50 ms, RK4)
+    Euler. :data:`MOMENTUM_MPC_SETTINGS` is the long-horizon formulation (50 x 50 ms)
     to pair with ``MpcWeights(objective="momentum")`` (module docstring).
     """
 
@@ -140,7 +138,7 @@ class MpcSettings:
 
 
 PAPER_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.01, integrator="euler")
-MOMENTUM_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.05, integrator="rk4")
+MOMENTUM_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.05, integrator="euler")
 
 
 @dataclass(frozen=True)

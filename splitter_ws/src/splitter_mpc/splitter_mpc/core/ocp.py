@@ -398,10 +398,17 @@ def build_ocp(
     us = [ca.SX.sym(f"u{k}", NU) for k in range(horizon)]
 
     def rate_error(x: ca.SX) -> ca.SX:
-        """Paper: ``w - w_ref``; momentum: ``(I w - |H| e) / I_nom`` (blended by a parameter)."""
+        """Paper: ``w - w_ref``; momentum: ``(1 - e e') w + e e' (I w - |H| e) / I_nom``.
+
+        Blended by a parameter (1: paper). The momentum form weighs the body rate
+        across the reference axis (zero at any spin about e) and, along e, how far
+        the body momentum is from ``|H| e`` (tells +e from -e).
+        """
         momentum = ca.mtimes(m, x[RADII_SQ]) * x[W]
         paper = x[W] - w_ref
-        return paper_blend * paper + (1.0 - paper_blend) * (momentum - momentum_norm * axis) / i_nom
+        perpendicular = x[W] - axis * ca.dot(axis, x[W])
+        along = axis * ca.dot(axis, (momentum - momentum_norm * axis) / i_nom)
+        return paper_blend * paper + (1.0 - paper_blend) * (perpendicular + along)
 
     def spin_error(x: ca.SX) -> ca.SX:
         """Rate of a spin about e with this configuration, minus the reachable target."""
