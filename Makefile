@@ -43,6 +43,7 @@ lint: $(STAMP)
 	$(BIN)/hadolint docker/Dockerfile
 
 test: lint
+	$(BIN)/splitter build-mpc
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)

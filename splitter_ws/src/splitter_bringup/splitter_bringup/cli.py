@@ -30,6 +30,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
         "splitter_bringup.commands.replay",
         "re-run the MPC on a recorded bag's inputs and compare its setpoints",
     ),
+    "build-mpc": (
+        "splitter_bringup.commands.build_mpc",
+        "compile and cache the MPC solvers the scenarios fly",
+    ),
     "actuator": ("splitter_ik.actuator_cli", "actuator sizing against the paper's numbers"),
 }
 

@@ -1,0 +1,61 @@
+"""``splitter build-mpc [SCENARIO ...]``: compile and cache the scenarios' MPC solvers.
+
+The compiled derivative code of an MPC depends on its horizon, prediction step and
+integrator (objective and weights are parameters). Each formulation the scenarios
+fly is built once here, through the same code the ``inertial_morphing_mpc`` node
+runs, so that later starts load it from the cache in under a second
+(:mod:`splitter_mpc.core.codegen`). ``make test`` calls it before the suite: the
+graph tests then start their MPC node without a compile inside their time limits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from splitter_bringup.core.scenario import available_scenarios, load_scenario
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "scenarios", nargs="*", help="scenario names or YAML paths (default: all bundled ones)"
+    )
+    parser.add_argument(
+        "--solver", default="fatrop", help="MPC solver to build (the node's default: fatrop)"
+    )
+
+
+def formulations(names: list[str]) -> dict[tuple[float, str], str]:
+    """(prediction step [s], integrator) -> the first ``scenario/variant`` flying it."""
+    found: dict[tuple[float, str], str] = {}
+    for name in names:
+        for variant in load_scenario(name).variants:
+            c = load_scenario(name, variant).controller
+            if c.enabled:
+                found.setdefault((c.dt_s, c.integrator), f"{name}/{variant}")
+    return found
+
+
+def main(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from splitter_bringup.core.closed_loop import controller_config
+    from splitter_mpc.core.mpc import InertialMorphingMpc
+    from splitter_sim.core.model import RobotModel
+
+    names = list(args.scenarios) or available_scenarios()
+    model = RobotModel()
+    for (dt_s, integrator), where in formulations(names).items():
+        scenario = load_scenario(*where.split("/"))
+        settings = replace(controller_config(scenario).mpc, solver=args.solver)
+        print(
+            f"building the {args.solver} MPC of {where} (N = {settings.horizon}, "
+            f"dt = {dt_s} s, {integrator}); a first build compiles (1-2 min) ...",
+            file=sys.stderr,
+            flush=True,
+        )
+        started = time.monotonic()
+        InertialMorphingMpc(model, settings)
+        print(f"  ready in {time.monotonic() - started:.1f} s", file=sys.stderr, flush=True)
+    return 0
