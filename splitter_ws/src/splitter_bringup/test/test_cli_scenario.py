@@ -30,7 +30,10 @@ def test_shipped_scenarios_load_with_paper_numbers() -> None:
     spin = load_scenario("spin_stabilization")
     np.testing.assert_allclose(spin.initial_angular_velocity_rad_s, [-0.3, -0.9, 0.9])
     assert spin.controller.r == (0.01, 1.0, 1.0)
-    assert spin.variants == ("mpc", "open_loop")
+    assert spin.variants == ("mpc", "paper_mpc", "open_loop")
+    assert (spin.controller.objective, spin.controller.dt_s) == ("momentum", 0.05)
+    paper = load_scenario("spin_stabilization", "paper_mpc").controller
+    assert (paper.objective, paper.dt_s, paper.q_w) == ("paper", 0.01, (100.0, 100.0, 100.0))
     assert not load_scenario("spin_stabilization", "open_loop").controller.enabled
     orient = load_scenario("orientation_tracking", "velocity_only")
     assert orient.controller.q_q == 0.0
@@ -46,3 +49,16 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         load_scenario(bad)
     with pytest.raises(ScenarioError, match="not found"):
         load_scenario("no_such_scenario")
+    for field, value in (("objective", "nope"), ("integrator", "nope"), ("dt_s", "-0.05")):
+        bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
+        with pytest.raises(ScenarioError, match=field):
+            load_scenario(bad)
+
+
+def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
+    from splitter_bringup.commands.build_mpc import formulations
+
+    found = formulations(available_scenarios())
+    assert found[0.05, "euler"] == "spin_stabilization/mpc"
+    assert (0.01, "euler") in found
+    assert len(found) == len(set(found.values()))

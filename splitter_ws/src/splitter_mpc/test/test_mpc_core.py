@@ -202,8 +202,10 @@ def test_rk4_model_conserves_the_body_momentum_norm_while_morphing() -> None:
     assert np.linalg.norm(inertia * x[0:3]) == pytest.approx(h0, rel=1e-5)
 
 
-def test_momentum_objective_cannot_be_lowered_by_inflating_the_inertia() -> None:
-    """The paper's J_w drops when the inertia grows (w = H / I); the momentum one does not."""
+def test_momentum_objective_weighs_the_rate_across_the_axis_and_the_reachable_spin() -> None:
+    """The paper's J_w drops when the inertia grows (w = H / I). The momentum objective
+    weighs the body rate across e (x, z here), the body momentum along e (unchanged by
+    the inertia) and the spin rate |H| / Iyy against the reachable one."""
     ocp = build_ocp(4, 0.05, morphing_limits(MODEL, 0.05), integrator="rk4")
     from splitter_mpc.core.ocp import parameter_vector
 
@@ -230,10 +232,16 @@ def test_momentum_objective_cannot_be_lowered_by_inflating_the_inertia() -> None
             xs[:, 7:10] = lim.radii_squared(inertia)
             costs[objective, label] = float(cost(ocp.join(xs, np.zeros((4, NU))), p))
     assert costs["paper", "inflated"] < 0.9 * costs["paper", "nominal"]
-    # momentum objective: the direction terms are unchanged; only the spin-rate term
-    # (|H| / Iyy toward the reachable rate, 1.10 rad/s) moves, and it improves with Iyy
+
+    # momentum objective: 4 stages + the end (Q_w = Q_t = 100 across e) on the body rate
+    # across e; along e the momentum term is unchanged; the spin-rate term (|H| / Iyy
+    # toward the reachable 1.10 rad/s) has Q_w,y = 100 per stage and Q_t,y = 10 at the end
+    def across(inertia) -> float:
+        return 5 * 100.0 * ((h[0] / inertia[0]) ** 2 + (h[2] / inertia[2]) ** 2)
+
     spin = lambda i_yy: 100.0 * (h_norm / i_yy - h_norm / 162.95) ** 2  # noqa: E731
-    change = spin(1.1 * I0[1]) - spin(I0[1])
+    inflated = I0 * [3.0, 1.1, 1.1]
+    change = spin(inflated[1]) - spin(I0[1])
     assert costs["momentum", "inflated"] - costs["momentum", "nominal"] == pytest.approx(
-        4 * change + 10.0 / 100.0 * change, rel=1e-6
+        across(inflated) - across(I0) + 4 * change + 10.0 / 100.0 * change, rel=1e-6
     )
