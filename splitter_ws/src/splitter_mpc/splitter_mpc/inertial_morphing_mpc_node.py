@@ -83,7 +83,8 @@ PARAMETERS = (
     ParameterSpec(
         "objective",
         "paper",
-        "how q_w/q_t weigh the rate: momentum direction + reachable spin, or paper (w - w_ref)",
+        "how q_w/q_t weigh the rate: momentum (rate across w_ref, reachable spin along it) "
+        "or paper (w - w_ref)",
         choices=OBJECTIVES,
     ),
     ParameterSpec("replan_period_s", 0.1, "re-plan period [s]", 0.001, 10.0),
