@@ -58,7 +58,10 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
 def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
     from splitter_bringup.commands.build_mpc import formulations
 
-    found = formulations(available_scenarios())
+    found = {
+        key: f"{scenario.name}/{scenario.variant}"
+        for key, scenario in formulations(available_scenarios()).items()
+    }
     assert found[0.05, "euler"] == "spin_stabilization/mpc"
     assert (0.01, "euler") in found
     assert len(found) == len(set(found.values()))

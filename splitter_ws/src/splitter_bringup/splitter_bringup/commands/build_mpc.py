@@ -14,7 +14,7 @@ import argparse
 import sys
 import time
 
-from splitter_bringup.core.scenario import available_scenarios, load_scenario
+from splitter_bringup.core.scenario import Scenario, available_scenarios, load_scenario
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,14 +26,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def formulations(names: list[str]) -> dict[tuple[float, str], str]:
-    """(prediction step [s], integrator) -> the first ``scenario/variant`` flying it."""
-    found: dict[tuple[float, str], str] = {}
+def formulations(names: list[str]) -> dict[tuple[float, str], Scenario]:
+    """(prediction step [s], integrator) -> the first scenario variant flying it."""
+    found: dict[tuple[float, str], Scenario] = {}
     for name in names:
         for variant in load_scenario(name).variants:
-            c = load_scenario(name, variant).controller
+            scenario = load_scenario(name, variant)
+            c = scenario.controller
             if c.enabled:
-                found.setdefault((c.dt_s, c.integrator), f"{name}/{variant}")
+                found.setdefault((c.dt_s, c.integrator), scenario)
     return found
 
 
@@ -44,14 +45,13 @@ def main(args: argparse.Namespace) -> int:
     from splitter_mpc.core.mpc import InertialMorphingMpc
     from splitter_sim.core.model import RobotModel
 
-    names = list(args.scenarios) or available_scenarios()
     model = RobotModel()
-    for (dt_s, integrator), where in formulations(names).items():
-        scenario = load_scenario(*where.split("/"))
+    for scenario in formulations(list(args.scenarios) or available_scenarios()).values():
         settings = replace(controller_config(scenario).mpc, solver=args.solver)
         print(
-            f"building the {args.solver} MPC of {where} (N = {settings.horizon}, "
-            f"dt = {dt_s} s, {integrator}); a first build compiles (1-2 min) ...",
+            f"building the {args.solver} MPC of {scenario.name}/{scenario.variant} "
+            f"(N = {settings.horizon}, dt = {settings.dt_s} s, {settings.integrator}); "
+            "a first build compiles (1-2 min) ...",
             file=sys.stderr,
             flush=True,
         )
