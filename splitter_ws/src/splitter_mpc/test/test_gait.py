@@ -11,19 +11,24 @@ import yaml
 
 from splitter_bringup.core.scenario import load_scenario
 from splitter_mpc.core.gait import (
+    ANTIPARALLEL_TOLERANCE,
     GaitConfig,
     GaitOutput,
     GaitPhase,
     GaitPhaseMachine,
     PlannedJump,
+    attitude_reference_at_stamp,
     gait_config_from_parameters,
     jump_plan_from_arrays,
     jump_plan_parameters,
     jump_wrench,
+    momentum_aligned_attitude,
     propagate_attitude,
     quaternion_multiply,
+    smallest_rotation,
 )
 from splitter_msgs_py import names
+from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 TICK_NS = 10_000_000  # [ns] control tick
 MS = 1_000_000  # [ns]
@@ -54,8 +59,9 @@ def tick(
     orientation=IDENTITY,
     position=(0.0, 0.0, 0.45),
     radius_x_m: float = RADIUS_X_M,
+    inertia=None,
 ) -> GaitOutput:
-    return machine.update(t_ns, position, velocity, orientation, rate, radius_x_m, normal)
+    return machine.update(t_ns, position, velocity, orientation, rate, radius_x_m, normal, inertia)
 
 
 def axis_angle(axis, angle_rad: float) -> np.ndarray:
@@ -346,6 +352,171 @@ def test_initial_mode_holds_the_first_attitude() -> None:
     reference = tick(machine, 0, orientation=q0, position=(0, 0, 10)).reference
     assert reference is not None and not reference.propagate
     np.testing.assert_allclose(reference.attitude_at(5 * 10**9), q0)
+
+
+# --- the momentum-aligned attitude reference -------------------------------------------------
+# Table II: w0 = [0.5, -0.5, 0.5] rad/s, attitude [5, 5, 15] deg (extrinsic x, y, z), radii
+# [2.8, 0.2, 0.2] m; the body momentum I w0 is 135 deg from +body y.
+TABLE_II_Q0 = quaternion_multiply(
+    axis_angle((0, 0, 1), math.radians(15.0)),
+    quaternion_multiply(
+        axis_angle((0, 1, 0), math.radians(5.0)), axis_angle((1, 0, 0), math.radians(5.0))
+    ),
+)
+TABLE_II_W0 = np.array([0.5, -0.5, 0.5])  # [rad/s]
+TABLE_II_I0 = principal_inertia(RobotModel(), PAPER_INITIAL_RADII_M)  # [kg m^2]
+E_Y = np.array([0.0, 1.0, 0.0])
+
+
+def world_momentum(q, w, inertia) -> np.ndarray:
+    """H = q (I w) q* by quaternion products [kg m^2/s]."""
+    return rotate(np.asarray(q, dtype=float), np.asarray(inertia) * np.asarray(w))
+
+
+def rotation_angle_and_axis(q) -> tuple[float, np.ndarray]:
+    q = np.asarray(q, dtype=float) * (1.0 if q[0] >= 0.0 else -1.0)
+    return 2.0 * math.atan2(np.linalg.norm(q[1:]), q[0]), q[1:] / np.linalg.norm(q[1:])
+
+
+def test_smallest_rotation_closed_forms() -> None:
+    x, y, z = np.eye(3)
+    np.testing.assert_array_equal(smallest_rotation(x, x, z), IDENTITY)
+    # x onto y: a quarter turn about z
+    np.testing.assert_allclose(smallest_rotation(x, y, z), axis_angle(z, math.pi / 2), atol=1e-16)
+    # x onto -x: the half turn about the part of the hint perpendicular to x
+    np.testing.assert_array_equal(smallest_rotation(x, -x, z), [0.0, 0.0, 0.0, 1.0])
+    np.testing.assert_allclose(smallest_rotation(x, -x, (3.0, 0.0, 4.0)), [0, 0, 0, 1], atol=1e-16)
+    with pytest.raises(ValueError, match="half_turn_axis"):
+        smallest_rotation(x, -x, (2.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="to_unit"):
+        smallest_rotation(x, (0.0, 2.0, 0.0), z)
+
+
+def test_smallest_rotation_takes_a_onto_b_about_their_normal() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a, b = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+        q = smallest_rotation(a, b, rng.normal(size=3))
+        assert abs(np.linalg.norm(q) - 1.0) < 1e-15
+        np.testing.assert_allclose(rotate(q, a), b, atol=1e-12)
+        angle, axis = rotation_angle_and_axis(q)
+        # the smallest: angle between a and b, about an axis perpendicular to both
+        assert angle == pytest.approx(math.acos(np.clip(a @ b, -1.0, 1.0)), abs=1e-12)
+        assert abs(axis @ a) < 1e-12 and abs(axis @ b) < 1e-12
+    # nearly opposite, either side of the tolerance: still onto b to the stated ~2e-8 rad
+    a = np.array([1.0, 0.0, 0.0])
+    for gap in (0.5 * ANTIPARALLEL_TOLERANCE, 2.0 * ANTIPARALLEL_TOLERANCE, 1e-6):
+        b = np.array([-math.cos(gap), math.sin(gap), 0.0])
+        assert np.linalg.norm(rotate(smallest_rotation(a, b, (0, 0, 1)), a) - b) < 2e-8
+
+
+def test_momentum_aligned_reference_has_body_y_along_the_world_momentum() -> None:
+    """Table II: R(q_ref) e = H / |H| with H conserved; the smallest turn, 135 deg about x."""
+    q_ref = momentum_aligned_attitude(TABLE_II_Q0, TABLE_II_W0, TABLE_II_I0, (0.0, 1.0, 0.0))
+    momentum = world_momentum(TABLE_II_Q0, TABLE_II_W0, TABLE_II_I0)
+    np.testing.assert_allclose(rotate(q_ref, E_Y), momentum / np.linalg.norm(momentum), atol=1e-12)
+    # +H, not -H: in the reference's body frame the momentum is +|H| e_y (w_ref's sense)
+    conj = q_ref * np.array([1.0, -1.0, -1.0, -1.0])
+    np.testing.assert_allclose(rotate(conj, momentum), np.linalg.norm(momentum) * E_Y, atol=1e-9)
+    q_align = quaternion_multiply(q_ref, TABLE_II_Q0 * np.array([1.0, -1.0, -1.0, -1.0]))
+    angle, axis = rotation_angle_and_axis(q_align)
+    h = TABLE_II_I0 * TABLE_II_W0
+    assert angle == pytest.approx(math.acos(h[1] / np.linalg.norm(h)), abs=1e-12)  # 135.0 deg
+    assert math.degrees(angle) == pytest.approx(135.0, abs=0.2)
+    assert abs(axis @ rotate(TABLE_II_Q0, E_Y)) < 1e-12 and abs(axis @ momentum) < 1e-12
+    # I w0 is nearly in the body y-z plane: the turn is nearly about body x
+    assert abs(axis @ rotate(TABLE_II_Q0, (1.0, 0.0, 0.0))) > 0.999
+
+
+def test_momentum_aligned_reference_in_the_closed_form_cases() -> None:
+    q = axis_angle((0.3, -1.0, 2.0), 0.7)
+    inertia = (0.5, 140.0, 141.0)
+    w_ref = (0.0, 1.0, 0.0)
+    # spinning about +y already: nothing to turn
+    np.testing.assert_allclose(momentum_aligned_attitude(q, (0, 0.8, 0), inertia, w_ref), q, 1e-15)
+    # about -y: the half turn about the body x axis (the body axis most perpendicular to y)
+    q_ref = momentum_aligned_attitude(q, (0.0, -0.8, 0.0), inertia, w_ref)
+    np.testing.assert_allclose(q_ref, quaternion_multiply(q, [0.0, 1.0, 0.0, 0.0]), atol=1e-15)
+    np.testing.assert_allclose(rotate(q_ref, E_Y), -rotate(q, E_Y), atol=1e-15)
+    # no axis (w_ref = 0) or no momentum (w = 0): the measured attitude, as given
+    for w, ref in (((0.1, 0.2, 0.3), (0.0, 0.0, 0.0)), ((0.0, 0.0, 0.0), w_ref)):
+        np.testing.assert_array_equal(momentum_aligned_attitude(q, w, inertia, ref), q)
+    # the sense of w_ref decides +H: w_ref = -y puts body y along -H
+    q_minus = momentum_aligned_attitude(q, (0.2, 0.5, -0.1), inertia, (0.0, -2.0, 0.0))
+    momentum = world_momentum(q, (0.2, 0.5, -0.1), inertia)
+    np.testing.assert_allclose(rotate(q_minus, -E_Y), momentum / np.linalg.norm(momentum), 1e-12)
+
+
+@pytest.mark.parametrize(
+    ("w", "inertia", "name"),
+    [
+        ((math.nan, 0.0, 0.0), (1.0, 1.0, 1.0), "angular_velocity_rad_s"),
+        ((0.0, 1.0, 0.0), (1.0, 0.0, 1.0), "principal_inertia_kg_m2"),
+        ((0.0, 1.0, 0.0), (1.0, 1.0), "principal_inertia_kg_m2"),
+    ],
+)
+def test_momentum_aligned_reference_names_a_bad_input(w, inertia, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        momentum_aligned_attitude(IDENTITY, w, inertia, (0.0, 1.0, 0.0))
+
+
+def test_attitude_reference_at_stamp_per_mode() -> None:
+    q = axis_angle((1.0, 0.0, 1.0), 0.3)
+    w, w_ref = (0.5, -0.5, 0.5), (0.0, 1.0, 0.0)
+    assert attitude_reference_at_stamp("initial", q, w, None, w_ref)[1] is False
+    q_ref, propagate = attitude_reference_at_stamp("integrate_w_ref", q, w, None, w_ref)
+    np.testing.assert_array_equal(q_ref, q)
+    assert propagate
+    q_ref, propagate = attitude_reference_at_stamp("momentum_aligned", q, w, TABLE_II_I0, w_ref)
+    np.testing.assert_array_equal(q_ref, momentum_aligned_attitude(q, w, TABLE_II_I0, w_ref))
+    assert propagate
+    with pytest.raises(ValueError, match="principal_inertia_kg_m2"):
+        attitude_reference_at_stamp("momentum_aligned", q, w, None, w_ref)
+    with pytest.raises(ValueError, match="attitude_reference"):
+        attitude_reference_at_stamp("spin", q, w, None, w_ref)
+
+
+def test_machine_in_momentum_aligned_mode() -> None:
+    """First tick: the aligned reference, which keeps body y along H as it propagates;
+    Landing (w_ref = 0, no axis): the measured attitude."""
+    config = GaitConfig(
+        jumps=(jump(0.0, "auto", 0.1),),
+        landing_w_ref_rad_s=(0.0, 0.0, 0.0),
+        attitude_reference="momentum_aligned",
+    )
+    machine = GaitPhaseMachine(config)
+    with pytest.raises(ValueError, match="principal_inertia_kg_m2"):
+        tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=TABLE_II_Q0, rate=TABLE_II_W0)
+    with pytest.raises(ValueError, match="principal_inertia_kg_m2"):
+        tick(machine, 0, orientation=TABLE_II_Q0, rate=TABLE_II_W0, inertia=(0.5, -1.0, 1.0))
+    assert machine.phase is None  # the rejected calls changed nothing
+    out = tick(
+        machine,
+        0,
+        normal=(STANCE_N, STANCE_N),
+        orientation=TABLE_II_Q0,
+        rate=TABLE_II_W0,
+        inertia=TABLE_II_I0,
+    )
+    reference = out.reference
+    assert reference is not None and reference.propagate and reference.stamp_ns == 0
+    np.testing.assert_allclose(
+        reference.q_ref_wxyz,
+        momentum_aligned_attitude(TABLE_II_Q0, TABLE_II_W0, TABLE_II_I0, (0.0, 1.0, 0.0)),
+        atol=1e-15,
+    )
+    momentum = world_momentum(TABLE_II_Q0, TABLE_II_W0, TABLE_II_I0)
+    for t_s in (0.0, 0.37, 2.0, 8.0):
+        q_t = reference.attitude_at(round(t_s * 1e9))
+        np.testing.assert_allclose(rotate(q_t, E_Y), momentum / np.linalg.norm(momentum), 1e-12)
+    q_landing = axis_angle((1.0, 0.0, 0.0), 0.5)
+    outputs = [
+        tick(machine, k * TICK_NS, orientation=q_landing, rate=(0, 0.3, 0), inertia=TABLE_II_I0)
+        for k in range(1, 20)
+    ]
+    landing = [o for o in outputs if o.reference is not None]
+    assert len(landing) == 1 and landing[0].phase == GaitPhase.LANDING
+    np.testing.assert_allclose(landing[0].reference.q_ref_wxyz, q_landing, atol=1e-15)
 
 
 def test_propagate_attitude_matches_closed_form_and_keeps_unit_norm() -> None:

@@ -58,10 +58,17 @@ JUMP for the others) whatever the contact does.
   with no jump planned is IN_FLIGHT until its first contact, then LANDING.
 
 Attitude reference (``AttitudeReference``): emitted on the first tick and when
-Landing starts. In mode ``"integrate_w_ref"`` the attitude reference starts at
-the first measured attitude and is propagated by the consumer with the angular
+Landing starts, made by :func:`attitude_reference_at_stamp` from the state
+measured on that tick. In mode ``"integrate_w_ref"`` the attitude reference starts
+at the measured attitude and is propagated by the consumer with the angular
 velocity reference (``q_ref(t) = q_ref(t0) (x) exp(w_ref (t - t0) / 2)``,
-body-frame rate); in mode ``"initial"`` the first measured attitude is held.
+body-frame rate); in mode ``"initial"`` the measured attitude is held. Mode
+``"momentum_aligned"`` propagates the same way from a reachable start,
+``q_align (x) q(t0)`` (:func:`momentum_aligned_attitude`): in torque-free flight
+the world angular momentum H is conserved, so a steady spin about the body axis
+``e = w_ref / |w_ref|`` has e along H; ``q_align`` is the smallest rotation that
+puts the measured body e there. What is left to track is then the phase of the
+spin about H (which the morphing sets through ``e' I e``).
 """
 
 from __future__ import annotations
@@ -83,7 +90,12 @@ _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000  # [ns/s]
 HEMI_INDEX: dict[str, int] = {hemi: i for i, hemi in enumerate(names.HEMIS)}
 JUMP_HEMIS = ("a", "b", "auto")
-ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref")
+ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref", "momentum_aligned")
+AXIS_EPS_RAD_S = 1e-9  # [rad/s] a w_ref shorter than this has no axis (as in the MPC's OCP)
+MOMENTUM_EPS_KG_M2_S = 1e-9  # [kg m^2/s] an angular momentum shorter than this has no direction
+# [-] |a + b| of unit vectors below which they count as opposite: sqrt(float64 eps), the
+# tolerance that bounds both branches of smallest_rotation's error (~2e-8 rad).
+ANTIPARALLEL_TOLERANCE = 1.5e-8
 
 
 class GaitPhase(StrEnum):
@@ -99,6 +111,22 @@ class GaitPhase(StrEnum):
 def seconds_to_ns(t_s: float) -> int:
     """Integer nanoseconds of a time in seconds, rounded to the nearest ns."""
     return round(t_s * NS_PER_S)
+
+
+# --- input checks --------------------------------------------------------------------------
+def _vector3(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: expected 3 finite numbers, got {value!r}")
+    return arr
+
+
+def _quaternion(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as a unit quaternion; ``ValueError`` when it is not finite and non-zero."""
+    q = np.asarray(value, dtype=float).reshape(-1)
+    if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) == 0.0:
+        raise ValueError(f"{name}: expected a finite quaternion, got {q.tolist()}")
+    return q / np.linalg.norm(q)
 
 
 # --- quaternions (scalar first, world <- base) -------------------------------------------
@@ -141,6 +169,125 @@ def propagate_attitude(
         delta = np.concatenate(([math.cos(angle / 2.0)], math.sin(angle / 2.0) * axis))
     q = quaternion_multiply(q_wxyz, delta)
     return q / np.linalg.norm(q)
+
+
+def _unit3(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    v = _vector3(value, name)
+    norm = float(np.linalg.norm(v))
+    if abs(norm - 1.0) > 1e-9:
+        raise ValueError(f"{name}: expected a unit vector, got |v| = {norm}")
+    return v / norm
+
+
+def smallest_rotation(
+    from_unit: ArrayLike, to_unit: ArrayLike, half_turn_axis: ArrayLike
+) -> NDArray[np.float64]:
+    """Unit quaternion (w, x, y, z) of the smallest rotation taking unit ``a`` onto unit ``b``.
+
+    Angle ``acos(a . b)`` about ``a x b``. With the half-way vector
+    ``h = (a + b) / |a + b|`` it is ``(a . h, a x h)``, unit by construction and
+    accurate to ~1e-16 / |a + b| rad. When ``b = -a`` (``|a + b|`` below
+    :data:`ANTIPARALLEL_TOLERANCE`) every axis perpendicular to ``a`` gives a half
+    turn of the same size: the part of ``half_turn_axis`` perpendicular to ``a`` is
+    used (it must not be parallel to ``a``). ``ValueError`` for non-unit inputs.
+    """
+    a = _unit3(from_unit, "from_unit")
+    b = _unit3(to_unit, "to_unit")
+    halfway = a + b
+    length = float(np.linalg.norm(halfway))
+    if length >= ANTIPARALLEL_TOLERANCE:
+        h = halfway / length
+        return np.concatenate(([float(a @ h)], np.cross(a, h)))
+    hint = _vector3(half_turn_axis, "half_turn_axis")
+    axis = hint - a * float(a @ hint)
+    norm = float(np.linalg.norm(axis))
+    if norm < 1e-6 * max(float(np.linalg.norm(hint)), 1e-300):
+        raise ValueError(f"half_turn_axis: {hint.tolist()} is parallel to from_unit {a.tolist()}")
+    return np.concatenate(([0.0], axis / norm))
+
+
+def momentum_aligned_attitude(
+    orientation_wxyz: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike,
+    w_ref_rad_s: ArrayLike,
+) -> NDArray[np.float64]:
+    """``q_align (x) q``: the attitude ``q`` turned so that body ``e = w_ref / |w_ref|`` is along H.
+
+    ``H = R(q) I w`` is the world angular momentum [kg m^2/s] of the body rate
+    ``w`` [rad/s] with the principal moments ``I = (Ixx, Iyy, Izz)`` [kg m^2]
+    (paper eq. 2; world <- base, scalar first). Conserved in torque-free flight,
+    it is the only direction a steady spin about e can have; ``+H`` (not ``-H``)
+    keeps the sense of ``w_ref``: a positive spin about e has its body momentum
+    along ``+e``. ``q_align`` is the smallest world-frame rotation taking
+    ``R(q) e`` onto ``H / |H|`` (:func:`smallest_rotation`); when they are opposite,
+    it is the half turn about the world direction of the body axis most
+    perpendicular to e (the first of x, y, z in a tie; body x for e = y, the axis
+    a nearly axisymmetric SPLITTER turns about).
+
+    Degenerate cases return ``q`` as given (the unaligned reference):
+    ``|w_ref|`` below :data:`AXIS_EPS_RAD_S` (no axis) or ``|H|`` below
+    :data:`MOMENTUM_EPS_KG_M2_S` (no direction). ``ValueError`` names a
+    non-finite or malformed input or a non-positive moment.
+    """
+    given = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
+    q = _quaternion(given, "orientation_wxyz")
+    w = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
+    inertia = _vector3(principal_inertia_kg_m2, "principal_inertia_kg_m2")
+    if np.any(inertia <= 0.0):
+        raise ValueError(f"principal_inertia_kg_m2: moments must be > 0, got {inertia.tolist()}")
+    w_ref = _vector3(w_ref_rad_s, "w_ref_rad_s")
+    speed = float(np.linalg.norm(w_ref))  # [rad/s]
+    rotation = rotation_matrix(q)
+    momentum_world = rotation @ (inertia * w)  # H [kg m^2/s]
+    momentum_norm = float(np.linalg.norm(momentum_world))
+    if speed < AXIS_EPS_RAD_S or momentum_norm < MOMENTUM_EPS_KG_M2_S:
+        _LOG.debug(
+            "momentum_aligned: |w_ref| = %g rad/s, |H| = %g kg m^2/s: no axis to align, "
+            "the measured attitude is the reference",
+            speed,
+            momentum_norm,
+        )
+        return given.copy()
+    axis_body = w_ref / speed  # e
+    perpendicular = int(np.argmin(np.abs(axis_body)))
+    q_align = smallest_rotation(
+        rotation @ axis_body, momentum_world / momentum_norm, rotation[:, perpendicular]
+    )
+    aligned = quaternion_multiply(q_align, q)
+    return aligned / np.linalg.norm(aligned)
+
+
+def attitude_reference_at_stamp(
+    mode: str,
+    orientation_wxyz: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike | None,
+    w_ref_rad_s: ArrayLike,
+) -> tuple[NDArray[np.float64], bool]:
+    """(attitude reference at its stamp, propagated with ``w_ref``?) from the state measured then.
+
+    ``mode`` is one of :data:`ATTITUDE_REFERENCE_MODES` (module docstring). The gait
+    machine makes its references here and the flight metrics rebuild them here,
+    so the error is measured against the reference the MPC was given.
+    ``principal_inertia_kg_m2`` [kg m^2] is needed by ``"momentum_aligned"`` only.
+    """
+    if mode not in ATTITUDE_REFERENCE_MODES:
+        raise ValueError(
+            f"attitude_reference: must be one of {ATTITUDE_REFERENCE_MODES}, got {mode!r}"
+        )
+    if mode == "momentum_aligned":
+        if principal_inertia_kg_m2 is None:
+            raise ValueError(
+                "principal_inertia_kg_m2: needed by attitude_reference 'momentum_aligned'"
+            )
+        q = momentum_aligned_attitude(
+            orientation_wxyz, angular_velocity_rad_s, principal_inertia_kg_m2, w_ref_rad_s
+        )
+        return q, True
+    given = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
+    _quaternion(given, "orientation_wxyz")
+    return given.copy(), mode == "integrate_w_ref"
 
 
 # --- geometry ------------------------------------------------------------------------------
@@ -288,11 +435,6 @@ def jump_plan_parameters(jumps: Iterable[JumpLike]) -> dict[str, list[float] | l
 
 
 # --- configuration and outputs -------------------------------------------------------------
-def _vector3(value: ArrayLike, name: str) -> NDArray[np.float64]:
-    arr = np.asarray(value, dtype=float).reshape(-1)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: expected 3 finite numbers, got {value!r}")
-    return arr
 
 
 @dataclass(frozen=True)
@@ -474,15 +616,19 @@ class GaitPhaseMachine:
         angular_velocity_rad_s: ArrayLike,
         radius_x_m: float,
         contact_normal_force_n: ArrayLike,
+        principal_inertia_kg_m2: ArrayLike | None = None,
     ) -> GaitOutput:
         """Advance to tick ``t_ns`` with the measured state.
 
         ``velocity_m_s`` is the world-frame centre-of-mass velocity,
         ``angular_velocity_rad_s`` the body rate, ``radius_x_m`` the distance of a
-        hemi body from the centre of mass along the tether, and
-        ``contact_normal_force_n`` the ground normal force on (hemi a, hemi b).
-        ``t_ns`` must increase from call to call; inputs must be finite
-        (``ValueError`` otherwise, the machine's state unchanged).
+        hemi body from the centre of mass along the tether,
+        ``contact_normal_force_n`` the ground normal force on (hemi a, hemi b) and
+        ``principal_inertia_kg_m2`` the measured (Ixx, Iyy, Izz) [kg m^2] (required
+        by ``attitude_reference: momentum_aligned``, optional otherwise).
+        ``t_ns`` must increase from call to call; inputs must be finite and the
+        moments > 0 (``ValueError`` naming the input otherwise, the machine's
+        state unchanged).
         """
         t_ns = int(t_ns)
         if self._last_t_ns is not None and t_ns <= self._last_t_ns:
@@ -490,16 +636,24 @@ class GaitPhaseMachine:
         position = _vector3(position_m, "position_m")
         velocity = _vector3(velocity_m_s, "velocity_m_s")
         rate = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
-        q = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) == 0.0:
-            raise ValueError(f"orientation_wxyz: expected a finite quaternion, got {q.tolist()}")
-        q = q / np.linalg.norm(q)
+        q = _quaternion(orientation_wxyz, "orientation_wxyz")
         radius_x = float(radius_x_m)
         if not (math.isfinite(radius_x) and radius_x > 0.0):
             raise ValueError(f"radius_x_m: must be finite and > 0, got {radius_x_m}")
         normal = np.asarray(contact_normal_force_n, dtype=float).reshape(-1)
         if normal.shape != (2,) or not np.all(np.isfinite(normal)):
             raise ValueError(f"contact_normal_force_n: expected 2 finite numbers, got {normal}")
+        inertia = None
+        if principal_inertia_kg_m2 is not None:
+            inertia = _vector3(principal_inertia_kg_m2, "principal_inertia_kg_m2")
+            if np.any(inertia <= 0.0):
+                raise ValueError(
+                    f"principal_inertia_kg_m2: moments must be > 0, got {inertia.tolist()}"
+                )
+        elif self.config.attitude_reference == "momentum_aligned":
+            raise ValueError(
+                "principal_inertia_kg_m2: required by attitude_reference 'momentum_aligned'"
+            )
 
         cfg = self.config
         first = self._phase is None
@@ -546,7 +700,7 @@ class GaitPhaseMachine:
         reference = None
         landing = phase in _LANDING_PHASES
         if first or (landing and not self._landing_reference_set):
-            reference = self._new_reference(t_ns, q, landing)
+            reference = self._new_reference(t_ns, q, rate, inertia, landing)
             self._reference = reference
 
         if self._thrust is not None:
@@ -572,16 +726,23 @@ class GaitPhaseMachine:
         )
 
     # -- internals -------------------------------------------------------------------------
-    def _new_reference(self, t_ns: int, q: NDArray[np.float64], landing: bool) -> AttitudeReference:
+    def _new_reference(
+        self,
+        t_ns: int,
+        q: NDArray[np.float64],
+        rate: NDArray[np.float64],
+        inertia: NDArray[np.float64] | None,
+        landing: bool,
+    ) -> AttitudeReference:
         cfg = self.config
-        w_ref = cfg.landing_w_ref_rad_s if landing else cfg.w_ref_rad_s
+        w_ref = np.array(cfg.landing_w_ref_rad_s if landing else cfg.w_ref_rad_s, dtype=float)
         if landing:
             self._landing_reference_set = True
+        q_ref, propagate = attitude_reference_at_stamp(
+            cfg.attitude_reference, q, rate, inertia, w_ref
+        )
         return AttitudeReference(
-            stamp_ns=t_ns,
-            w_ref_rad_s=np.array(w_ref, dtype=float),
-            q_ref_wxyz=q.copy(),
-            propagate=cfg.attitude_reference == "integrate_w_ref",
+            stamp_ns=t_ns, w_ref_rad_s=w_ref, q_ref_wxyz=q_ref, propagate=propagate
         )
 
     def _next_phase(
