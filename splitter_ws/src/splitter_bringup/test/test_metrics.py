@@ -10,11 +10,17 @@ import pytest
 from splitter_bringup.core.metrics import (
     SETTLING_BAND,
     attitude_error_rad,
+    attitude_reference_series,
     flight_summary,
     step_response,
 )
 from splitter_bringup.core.series import RunSeries
-from splitter_mpc.core.gait import propagate_attitude
+from splitter_mpc.core.gait import (
+    GaitConfig,
+    GaitPhaseMachine,
+    momentum_aligned_attitude,
+    propagate_attitude,
+)
 from splitter_sim.core.model import STANDARD_GRAVITY
 
 
@@ -67,3 +73,32 @@ def test_attitude_error_counts_q_and_minus_q_as_one_attitude() -> None:
     q[::2] *= -1.0
     err = attitude_error_rad(series(t, np.tile([0, 1.0, 0], (len(t), 1)), q), [0, 1.0, 0])
     assert np.max(err) < 1e-7
+
+
+def test_momentum_aligned_error_is_measured_against_the_gait_machines_reference() -> None:
+    """The metric rebuilds, from the first sample, the reference the gait machine made then."""
+    t = np.linspace(0.0, 3.0, 601)
+    q0 = np.array([0.9898, 0.0375, 0.0489, 0.1284])
+    q0 /= np.linalg.norm(q0)
+    w = np.tile([0.5, -0.5, 0.5], (len(t), 1))
+    inertia = (0.48, 141.36, 141.36)
+    w_ref = np.array([0.0, 1.0, 0.0])
+    machine = GaitPhaseMachine(GaitConfig(attitude_reference="momentum_aligned"))
+    out = machine.update(0, (0, 0, 10), (0, 0, 0), q0, w[0], 1.4, (0.0, 0.0), inertia)
+    expected = np.array([out.reference.attitude_at(round(s * 1e9)) for s in t])
+    held = series(t, w, np.tile(q0, (len(t), 1)), inertia=inertia)
+    refs = attitude_reference_series(held, w_ref, "momentum_aligned")
+    np.testing.assert_allclose(refs, expected, atol=1e-15)
+    # a body holding q0 starts 135 deg (body y to H) from it; one on the reference after
+    # the first sample, 0 from then on
+    err = attitude_error_rad(held, w_ref, "momentum_aligned")
+    assert math.degrees(err[0]) == pytest.approx(135.0, abs=0.2)
+    flying = series(t, w, np.vstack([q0, expected[1:]]), inertia=inertia)
+    err = attitude_error_rad(flying, w_ref, "momentum_aligned")
+    assert math.degrees(err[0]) == pytest.approx(135.0, abs=0.2)
+    assert np.max(err[1:]) < 1e-7
+    # the paper's reference starts at q0 itself
+    assert attitude_error_rad(held, w_ref, "integrate_w_ref")[0] < 1e-7
+    np.testing.assert_allclose(
+        refs[0], momentum_aligned_attitude(q0, w[0], inertia, w_ref), atol=1e-15
+    )

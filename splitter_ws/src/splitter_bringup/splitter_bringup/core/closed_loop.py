@@ -8,9 +8,9 @@ solver tolerance. For each simulator step at time ``t`` (5 ms):
    contact wrenches, joint_states);
 2. on a control tick (``t % 10 ms == 0``):
    a. gait phase manager: ``GaitPhaseMachine.update`` with odom, the contact
-      normal forces and ``r_x`` = tether / 2; its attitude reference (first tick,
-      Landing) goes to the MPC as the latched reference topics would; its jump
-      wrench to the simulator;
+      normal forces, ``r_x`` = tether / 2 and the measured principal inertia; its
+      attitude reference (first tick, Landing) goes to the MPC as the latched
+      reference topics would; its jump wrench to the simulator;
    b. MPC: ``MorphingController.on_state(t, w, q, I, phase)`` -> setpoint stamped t;
    c. allocator: ``TetherLimbAllocator.allocate(t, setpoint, w)`` -> joint
       commands stamped t, sent to the simulator;
@@ -132,6 +132,7 @@ def run_closed_loop(
                 state.angular_velocity_rad_s,
                 float(state.joint_position[TETHER_JOINT]) / 2.0,
                 state.contact_force_n[:, 2],
+                state.principal_inertia_kg_m2,  # /splitter/inertia
             )
             phase_name = out.phase.value
             if out.reference is not None:

@@ -18,9 +18,15 @@ or a bag of the node graph). Definitions (stated, since the paper does not):
   conserved in flight and the final spin about y, ``w_y = |H| / Iyy`` exactly:
   the final spin rate is set by the final inertia, not by the reference.
 
-Attitude error: the angle between the attitude and the reference ``q_ref(t) =
-q_ref(0) (x) exp(w_ref t / 2)`` (body rate, from the first attitude), q and -q
-counted as one attitude.
+Attitude error: the angle between the attitude and the reference the MPC was
+given, q and -q counted as one attitude. The gait machine makes that reference
+on its first tick (t = 0, the first sample) from the measured state;
+:func:`attitude_reference_series` rebuilds it from the first sample (q0, w0 and
+the principal inertia I0) with the same function
+(``splitter_mpc.core.gait.attitude_reference_at_stamp``) and propagates it as the
+MPC does: ``q_ref(t) = q_ref(0) (x) exp(w_ref t / 2)`` (body rate), held in mode
+``initial``. In mode ``momentum_aligned`` ``q_ref(0)`` has the body axis of w_ref
+along the world angular momentum (reachable in torque-free flight).
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_bringup.core.series import RunSeries
-from splitter_mpc.core.gait import propagate_attitude
+from splitter_mpc.core.gait import attitude_reference_at_stamp, propagate_attitude
 from splitter_sim.core.model import STANDARD_GRAVITY
 
 FINAL_WINDOW_S = 0.5  # [s]
@@ -103,13 +109,27 @@ def step_response(t_s: ArrayLike, y: ArrayLike, final: float) -> tuple[float, fl
     return tau, settling
 
 
-def attitude_error_rad(
-    series: RunSeries, w_ref_rad_s: ArrayLike, propagate: bool = True
+def attitude_reference_series(
+    series: RunSeries, w_ref_rad_s: ArrayLike, attitude_reference: str = "integrate_w_ref"
 ) -> NDArray[np.float64]:
-    """Angle [rad] between the attitude and the reference started at the first attitude."""
-    q0 = series.orientation_wxyz[0]
-    w_ref = np.asarray(w_ref_rad_s, dtype=float) if propagate else np.zeros(3)
-    refs = np.array([propagate_attitude(q0, w_ref, float(t - series.t_s[0])) for t in series.t_s])
+    """(n, 4) attitude reference at every sample, made from the first sample (module docstring)."""
+    w_ref = np.asarray(w_ref_rad_s, dtype=float)
+    q0, propagate = attitude_reference_at_stamp(
+        attitude_reference,
+        series.orientation_wxyz[0],
+        series.angular_velocity_rad_s[0],
+        series.principal_inertia_kg_m2[0],
+        w_ref,
+    )
+    rate = w_ref if propagate else np.zeros(3)
+    return np.array([propagate_attitude(q0, rate, float(t - series.t_s[0])) for t in series.t_s])
+
+
+def attitude_error_rad(
+    series: RunSeries, w_ref_rad_s: ArrayLike, attitude_reference: str = "integrate_w_ref"
+) -> NDArray[np.float64]:
+    """Angle [rad] between the attitude and :func:`attitude_reference_series`."""
+    refs = attitude_reference_series(series, w_ref_rad_s, attitude_reference)
     q = series.orientation_wxyz / np.linalg.norm(series.orientation_wxyz, axis=1, keepdims=True)
     dot = np.clip(np.abs(np.sum(q * refs, axis=1)), 0.0, 1.0)
     return 2.0 * np.arccos(dot)
@@ -131,7 +151,7 @@ def flight_summary(
     momentum = _momentum_norm(series)
     iyy_end = float(series.principal_inertia_kg_m2[-1, 1])
     w_end = w[-1]
-    att = attitude_error_rad(series, w_ref_rad_s, attitude_reference == "integrate_w_ref")
+    att = attitude_error_rad(series, w_ref_rad_s, attitude_reference)
     window = f"mean over the last {FINAL_WINDOW_S:g} s"
     energy_paper = paper.get("energy")
     out = {

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
 from splitter_sim.core.model import gravity_from_name
 
@@ -58,7 +59,9 @@ class ControllerSpec:
     q_tq: float = 0.0
     # "initial": hold the initial attitude; "integrate_w_ref": attitude reference
     # propagated from the initial attitude with w_ref (the paper's "nonconstant"
-    # reference "calculated based on the angular velocity reference").
+    # reference "calculated based on the angular velocity reference");
+    # "momentum_aligned": the same, started with the body axis of w_ref turned onto
+    # the angular momentum (reachable in torque-free flight; splitter_mpc.core.gait).
     attitude_reference: str = "integrate_w_ref"
     # The MPC formulation (splitter_mpc.core.mpc): "paper" weighs w - w_ref over
     # N = 50 x 10 ms (section VI); "momentum" weighs the rate across the reference
@@ -180,8 +183,8 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")
     if controller.integrator not in INTEGRATORS:
         raise ScenarioError(f"controller.integrator: use one of {INTEGRATORS}")
-    if controller.attitude_reference not in ("initial", "integrate_w_ref"):
-        raise ScenarioError("controller.attitude_reference: use 'initial' or 'integrate_w_ref'")
+    if controller.attitude_reference not in ATTITUDE_REFERENCE_MODES:
+        raise ScenarioError(f"controller.attitude_reference: use one of {ATTITUDE_REFERENCE_MODES}")
     jumps = []
     for i, j in enumerate(d.get("jumps", []) or []):
         force = _vector(j, "force_n")
