@@ -4,7 +4,8 @@ A thin ROS layer over :class:`splitter_mpc.core.gait.GaitPhaseMachine`.
 
 Lockstep (docs/ARCHITECTURE.md, item 5): the node answers control tick ``t``
 (``t`` on the ``control_period_s`` grid) once it holds ``/splitter/odom``, both
-contact wrenches and ``/splitter/joint_states`` stamped ``t``; it publishes
+contact wrenches, ``/splitter/joint_states`` and ``/splitter/inertia`` stamped
+``t``; it publishes
 ``/splitter/jump_command`` stamped ``t`` (a zero wrench when not thrusting) on
 every tick it answers. Waiting for all four inputs of the same tick makes the
 answer independent of the order in which DDS delivers them, so runs repeat.
@@ -15,7 +16,10 @@ good message of that topic, so lockstep never stalls on bad data.
 
 Subscribes: ``/splitter/odom``, ``/splitter/hemi_{a,b}/contact_wrench`` (stance:
 world-z force above ``stance_force_threshold_n``), ``/splitter/joint_states``
-(``r_x`` = tether joint / 2).
+(``r_x`` = tether joint / 2), ``/splitter/inertia`` (the measured principal
+moments: with the odom's body rate, the angular momentum that
+``attitude_reference: momentum_aligned`` aligns the reference with; the very
+numbers the MPC and the recorded run see).
 Publishes: ``/splitter/jump_command`` (every tick), ``/splitter/gait_phase``,
 ``/splitter/attitude_reference`` and ``/splitter/attitude_reference_pose``
 (latched, on change), ``/diagnostics`` (every ``diagnostics_period_s`` of
@@ -26,7 +30,7 @@ from __future__ import annotations
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
@@ -55,6 +59,7 @@ from splitter_msgs_py.conversions import (
     pose_to_msg,
     stamp_from_msg,
     twist_to_msg,
+    vector3_from_msg,
     wrench_from_msg,
     wrench_to_msg,
 )
@@ -70,8 +75,15 @@ from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 NODE_NAME = "gait_phase_manager"
 DEFAULTS = GaitConfig()
 TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
-TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
+TICK_INPUTS = (
+    names.ODOM,
+    names.CONTACT_WRENCH_A,
+    names.CONTACT_WRENCH_B,
+    names.JOINT_STATES,
+    names.INERTIA,
+)
 MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
+MAX_INERTIA_KG_M2 = 1.0e4  # [kg m^2] a measured moment above this is a corrupt message
 
 # The jump plan: float arrays that a params file may give as [] (read as "not set").
 PLAN_PARAMETERS = (
@@ -139,7 +151,9 @@ PARAMETERS = (
     ParameterSpec(
         "attitude_reference",
         DEFAULTS.attitude_reference,
-        "attitude reference: hold the first measured attitude, or propagate it with w_ref",
+        "attitude reference: hold the first measured attitude (initial), propagate it with "
+        "w_ref (integrate_w_ref), or propagate it with w_ref after turning the body axis of "
+        "w_ref onto the measured angular momentum (momentum_aligned)",
         choices=ATTITUDE_REFERENCE_MODES,
     ),
     ParameterSpec(
@@ -246,6 +260,9 @@ class GaitPhaseManagerNode(Node):
         self.create_subscription(
             JointState, names.JOINT_STATES, self._on_joint_states, qos_for(names.JOINT_STATES)
         )
+        self.create_subscription(
+            Vector3Stamped, names.INERTIA, self._on_inertia, qos_for(names.INERTIA)
+        )
         self.get_logger().info(
             f"{len(config.jumps)} jump(s) planned at "
             f"{[j.time_ns / 1e9 for j in config.jumps]} s; attitude reference "
@@ -314,6 +331,23 @@ class GaitPhaseManagerNode(Node):
             return
         self._accept(names.JOINT_STATES, sample.t_ns, sample)
 
+    def _on_inertia(self, msg: Vector3Stamped) -> None:
+        try:
+            sample = vector3_from_msg(msg)
+            if sample.frame_id != names.BASE_FRAME:
+                raise MessageValidationError(
+                    f"header.frame_id: expected '{names.BASE_FRAME}', got '{sample.frame_id}'"
+                )
+            if min(sample.vector) <= 0.0 or max(sample.vector) > MAX_INERTIA_KG_M2:
+                raise MessageValidationError(
+                    f"vector: moments must be in (0, {MAX_INERTIA_KG_M2:g}] kg m^2, "
+                    f"got {sample.vector.tolist()}"
+                )
+        except MessageValidationError as exc:
+            self._reject(names.INERTIA, msg.header.stamp, exc)
+            return
+        self._accept(names.INERTIA, sample.t_ns, sample)
+
     def _accept(self, topic: str, t_ns: int, sample: object) -> None:
         self._last_good[topic] = sample
         self._collect(topic, t_ns, sample)
@@ -358,12 +392,12 @@ class GaitPhaseManagerNode(Node):
         if any(sample is None for sample in inputs.values()):
             self._stale_ticks += 1
         # A rejected input (None) is replaced by the last good message of its topic.
-        odom, contact_a, contact_b, joints = (
+        odom, contact_a, contact_b, joints, inertia = (
             inputs[topic] if inputs[topic] is not None else self._last_good.get(topic)
             for topic in TICK_INPUTS
         )
         output = None
-        if odom is None or contact_a is None or contact_b is None or joints is None:
+        if any(sample is None for sample in (odom, contact_a, contact_b, joints, inertia)):
             warn_throttled(
                 self, "no_good_input", f"tick {t_ns * 1e-9:.3f} s: no good input yet; zero thrust"
             )
@@ -377,6 +411,7 @@ class GaitPhaseManagerNode(Node):
                     odom.angular_velocity_rad_s,
                     0.5 * float(joints.position[TETHER_INDEX]),
                     (float(contact_a.force_n[2]), float(contact_b.force_n[2])),
+                    inertia.vector,
                 )
             except ValueError as exc:
                 self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: gait update failed: {exc}")

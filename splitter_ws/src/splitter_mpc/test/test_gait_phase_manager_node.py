@@ -12,7 +12,7 @@ import pytest
 import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -21,7 +21,12 @@ from std_msgs.msg import String
 
 from splitter_bringup.core.graph_config import graph_nodes, write_parameter_file
 from splitter_bringup.core.scenario import available_scenarios, load_scenario
-from splitter_mpc.core.gait import PlannedJump, gait_config_from_parameters, rotation_matrix
+from splitter_mpc.core.gait import (
+    PlannedJump,
+    gait_config_from_parameters,
+    momentum_aligned_attitude,
+    rotation_matrix,
+)
 from splitter_mpc.gait_phase_manager_node import GaitPhaseManagerNode, main
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
@@ -31,6 +36,7 @@ from splitter_msgs_py.conversions import (
     pose_from_msg,
     stamp_from_msg,
     twist_from_msg,
+    vector3_to_msg,
     wrench_from_msg,
     wrench_to_msg,
 )
@@ -42,6 +48,7 @@ TETHER_M = 2.8  # [m] distance between the hemi bodies: r_x = 1.4 m
 PITCH_RAD = math.radians(10.0)  # constant attitude of the synthetic body
 Q_BODY = np.array([math.cos(PITCH_RAD / 2), 0.0, math.sin(PITCH_RAD / 2), 0.0])
 FORCE_N = (40.0, 0.0, 40.0)
+INERTIA_KG_M2 = (0.48, 141.36, 141.36)  # [kg m^2] principal moments at the paper's radii
 CONFIG_FILE = Path(__file__).resolve().parents[1] / "config" / "gait_phase_manager.yaml"
 
 PLAN = [
@@ -87,6 +94,9 @@ class FakeSimulator:
         self.joints = self.node.create_publisher(
             JointState, names.JOINT_STATES, qos_for(names.JOINT_STATES)
         )
+        self.inertia = self.node.create_publisher(
+            Vector3Stamped, names.INERTIA, qos_for(names.INERTIA)
+        )
         self.jump_commands: list[WrenchStamped] = []
         self.phases: list[str] = []
         self.w_refs: list[TwistStamped] = []
@@ -111,8 +121,14 @@ class FakeSimulator:
             DiagnosticArray, names.DIAGNOSTICS, self.diagnostics.append, qos_for(names.DIAGNOSTICS)
         )
 
-    def publish_state(self, t_ns: int, odom: Odometry | None = None) -> None:
+    def publish_state(
+        self,
+        t_ns: int,
+        odom: Odometry | None = None,
+        inertia: Vector3Stamped | None = None,
+    ) -> None:
         normal, velocity = scripted_state(t_ns // MS)
+        self.inertia.publish(inertia or vector3_to_msg(t_ns, INERTIA_KG_M2, names.BASE_FRAME))
         joints = np.zeros(names.N_JOINTS)
         joints[names.JOINT_INDEX[names.TETHER_JOINT]] = TETHER_M
         self.joints.publish(joint_state_to_msg(t_ns, joints))
@@ -238,10 +254,58 @@ def test_a_tick_waits_for_all_its_inputs(graph) -> None:
     sim.contacts[0].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
     for _ in range(30):
         executor.spin_once(timeout_sec=0.005)
-    assert sim.jump_commands == []  # hemi b's contact wrench for t = 0 is missing
+    assert sim.jump_commands == []  # hemi b's contact wrench and the inertia are missing
     sim.contacts[1].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
+    for _ in range(30):
+        executor.spin_once(timeout_sec=0.005)
+    assert sim.jump_commands == []  # the inertia for t = 0 is missing
+    sim.inertia.publish(vector3_to_msg(0, INERTIA_KG_M2, names.BASE_FRAME))
     spin_until(executor, lambda: len(sim.jump_commands) == 1)
     assert stamp_from_msg(sim.jump_commands[0].header.stamp) == 0
+
+
+def test_momentum_aligned_pose_and_a_bad_inertia_message(ros_context) -> None:
+    """The published pose is the core's momentum-aligned attitude of the first tick's state;
+    a corrupt /splitter/inertia is rejected, its tick answered from the last good one."""
+    overrides = [*PLAN, Parameter("attitude_reference", value="momentum_aligned")]
+    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
+    sim = FakeSimulator(ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(manager)
+    executor.add_node(sim.node)
+    rate = (0.5, -0.5, 0.5)  # [rad/s] body: I w is 135 deg from +y
+    try:
+        for t_ms in range(0, 110, 10):
+            t_ns = t_ms * MS
+            odom = odom_to_msg(t_ns, (0.0, 0.0, 0.45), Q_BODY, (0, 0, 0), rate)
+            inertia = None
+            if t_ms == 20:
+                inertia = vector3_to_msg(t_ns, (0.48, -1.0, 141.36), names.BASE_FRAME)
+            sim.publish_state(t_ns, odom, inertia)
+            spin_until(
+                executor,
+                lambda t_ns=t_ns: any(
+                    stamp_from_msg(m.header.stamp) == t_ns for m in sim.jump_commands
+                ),
+            )
+        spin_until(executor, lambda: bool(sim.q_refs) and len(sim.diagnostics) >= 2)
+        assert [stamp_from_msg(m.header.stamp) for m in sim.jump_commands] == [
+            t * MS for t in range(0, 110, 10)
+        ]
+        assert sim.q_refs[0].header.frame_id == names.WORLD_FRAME
+        _, q_ref, _ = pose_from_msg(sim.q_refs[0])
+        expected = momentum_aligned_attitude(Q_BODY, rate, INERTIA_KG_M2, (0.0, 1.0, 0.0))
+        np.testing.assert_allclose(q_ref, expected, atol=1e-15)
+        h = rotation_matrix(Q_BODY) @ (np.array(INERTIA_KG_M2) * rate)
+        np.testing.assert_allclose(rotation_matrix(q_ref)[:, 1], h / np.linalg.norm(h), atol=1e-12)
+        last = diagnostics_from_msg(sim.diagnostics[-1])[0]
+        assert stamp_from_msg(sim.diagnostics[-1].header.stamp) == 100 * MS
+        assert last.values["rejected_messages"] == 1.0  # the 20 ms inertia ...
+        assert last.values["ticks_with_rejected_input"] == 1.0  # ... its tick still answered
+    finally:
+        executor.shutdown()
+        manager.destroy_node()
+        sim.node.destroy_node()
 
 
 @pytest.mark.parametrize(
