@@ -37,6 +37,13 @@ def test_shipped_scenarios_load_with_paper_numbers() -> None:
     assert not load_scenario("spin_stabilization", "open_loop").controller.enabled
     orient = load_scenario("orientation_tracking", "velocity_only")
     assert orient.controller.q_q == 0.0
+    assert orient.controller.attitude_reference == "momentum_aligned"
+    assert (orient.controller.objective, orient.controller.dt_s) == ("momentum", 0.05)
+    assert load_scenario("orientation_tracking").variants[:3] == (
+        "quaternion_tracking",
+        "velocity_only",
+        "open_loop",
+    )
     lunar = load_scenario("lunar_jumping")
     assert lunar.gravity_m_s2 == pytest.approx(9.80665 / 6)
     assert [j.time_s for j in lunar.jumps] == [0.0, 5.0]
@@ -49,7 +56,12 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         load_scenario(bad)
     with pytest.raises(ScenarioError, match="not found"):
         load_scenario("no_such_scenario")
-    for field, value in (("objective", "nope"), ("integrator", "nope"), ("dt_s", "-0.05")):
+    for field, value in (
+        ("objective", "nope"),
+        ("integrator", "nope"),
+        ("dt_s", "-0.05"),
+        ("attitude_reference", "nope"),
+    ):
         bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
         with pytest.raises(ScenarioError, match=field):
             load_scenario(bad)
@@ -62,6 +74,7 @@ def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
         key: f"{scenario.name}/{scenario.variant}"
         for key, scenario in formulations(available_scenarios()).items()
     }
-    assert found[0.05, "euler"] == "spin_stabilization/mpc"
+    # the first scenario (in name order) flying the momentum formulation builds it
+    assert found[0.05, "euler"] == "orientation_tracking/quaternion_tracking"
     assert (0.01, "euler") in found
     assert len(found) == len(set(found.values()))

@@ -5,6 +5,8 @@ controller does, so the MPC can only turn it into the body y axis (and the final
 spin rate is |H| / Iyy). The paper's own numbers are compared where this
 implementation reproduces them; where it does not, the strict xfail tests
 record the gap (explained in the splitter_mpc.core.mpc docstring) and will flag the day it closes.
+For the same reason orientation tracking is measured against a reachable attitude
+reference, body y along the conserved H (``attitude_reference: momentum_aligned``).
 """
 
 from __future__ import annotations
@@ -12,9 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup.core.closed_loop import run_closed_loop
-from splitter_bringup.core.metrics import flight_summary
+from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+from splitter_bringup.core.metrics import attitude_reference_series, flight_summary
 from splitter_bringup.core.scenario import load_scenario
+from splitter_mpc.core.controller import MorphingController
+from splitter_mpc.core.gait import rotation_matrix
 from splitter_mpc.core.mpc import MpcSettings
 from splitter_mpc.core.solvers import SolverOptions
 from splitter_sim.core.model import RobotModel
@@ -44,7 +48,13 @@ def spin():
 
 @pytest.fixture(scope="module")
 def orientation():
-    return {v: run("orientation_tracking", v) for v in ("quaternion_tracking", "velocity_only")}
+    """variant -> (series, metrics, the MPC's controller: it holds the reference it was given)."""
+    runs = {}
+    for variant in ("quaternion_tracking", "velocity_only"):
+        config = controller_config(load_scenario("orientation_tracking", variant), MPC)
+        controller = MorphingController(MODEL, config)
+        runs[variant] = (*run("orientation_tracking", variant, controller=controller), controller)
+    return runs
 
 
 def off_axis_rate(series) -> float:
@@ -109,22 +119,58 @@ def test_the_papers_formulation_turns_slower_than_the_momentum_one(spin) -> None
 
 def test_quaternion_tracking_needs_a_wider_inertia_range(orientation) -> None:
     """Paper section VII.A.2: 'quaternion tracking requires a broader range of inertia'."""
-    quaternion, q_metrics = orientation["quaternion_tracking"]
-    velocity, v_metrics = orientation["velocity_only"]
+    quaternion, q_metrics, _ = orientation["quaternion_tracking"]
+    velocity, v_metrics, _ = orientation["velocity_only"]
     assert q_metrics["radii_range_m"] > 2.0 * v_metrics["radii_range_m"]
     for series in (quaternion, velocity):
         assert np.all(np.isfinite(series.angular_velocity_rad_s))
+        h = np.linalg.norm(series.extras["angular_momentum_world"], axis=1)
+        assert np.max(np.abs(h - h[0])) < 1e-3 * h[0]
+        assert np.all(series.radii_m >= MODEL.radii_min_m - 1e-6)
+        assert np.all(series.radii_m <= MODEL.radii_max_m + 1e-6)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the reference turns +1 rad/s about body y while the body turns at w_y = -0.5 "
-    "with H 45 deg off the reference axis: no inertia can follow it; splitter_mpc.core.mpc",
-)
+def test_the_attitude_error_is_measured_against_the_reference_the_mpc_was_given(
+    orientation,
+) -> None:
+    """The metric rebuilds the reference from the first sample; the MPC got it from the gait
+    machine on the first tick. Both put body y along the conserved H (reachable)."""
+    series, _, controller = orientation["quaternion_tracking"]
+    reference = controller.reference
+    assert reference.stamp_ns == 0
+    given = np.array([reference.attitude_at(round(t * 1e9)) for t in series.t_s])
+    rebuilt = attitude_reference_series(series, (0.0, 1.0, 0.0), "momentum_aligned")
+    np.testing.assert_allclose(rebuilt, given, atol=1e-15)  # measured: bit-identical
+    momentum = series.extras["angular_momentum_world"][0]
+    for q in given[:: len(given) // 8]:
+        np.testing.assert_allclose(
+            rotation_matrix(q)[:, 1], momentum / np.linalg.norm(momentum), atol=1e-12
+        )
+
+
 def test_quaternion_tracking_reduces_the_final_attitude_error(orientation) -> None:
-    _, q_metrics = orientation["quaternion_tracking"]
-    _, v_metrics = orientation["velocity_only"]
-    assert q_metrics["attitude_error_final_deg"] < v_metrics["attitude_error_final_deg"]
+    """Issue 4, against the reachable reference (body y along +H, spin phase from w_ref).
+
+    With quaternion tracking the MPC turns body y 135 deg onto +H and then holds the
+    spin phase through Iyy: the reference spins at |w_ref| = 1 rad/s, which only
+    Iyy = |H| / |w_ref| gives. Measured (8 s): 1.6 deg in the last 0.5 s, the tail of a
+    nutation that peaks near 12 deg at 5 s and decays (0.3 deg by 12 s); 5 deg leaves
+    3x margin. Without it Table II weighs w_y lightly (Q_w,y = 10, Q_t,y = 1), and the
+    MPC settles about the nearer pole, -y (45 deg from the initial momentum): body y ends
+    opposite H, 179 deg from the reference.
+    """
+    series, q_metrics, _ = orientation["quaternion_tracking"]
+    _, v_metrics, _ = orientation["velocity_only"]
+    q_error = q_metrics["attitude_error_final_deg"]
+    v_error = v_metrics["attitude_error_final_deg"]
+    assert q_error < 5.0
+    assert v_error > q_error + 90.0
+    assert q_metrics["spin_alignment_final"] > 0.99 and q_metrics["wy_final"] > 0.0
+    assert v_metrics["wy_final"] < 0.0  # the other pole
+    final = series.t_s >= series.t_s[-1] - 0.5
+    momentum = np.linalg.norm(series.extras["angular_momentum_world"][0])
+    iyy = np.mean(series.principal_inertia_kg_m2[final, 1])
+    assert iyy == pytest.approx(momentum / 1.0, rel=0.02)  # |H| / |w_ref|
 
 
 def test_solver_failures_mid_run_are_survived() -> None:
