@@ -3,7 +3,9 @@
 What they show (issue 6): spin_stabilization converges through the graph;
 lunar_jumping completes its jumps; the same scenario run twice gives identical
 message payloads; when the MPC node is destroyed mid-run the simulator and the
-allocator keep running on the last good setpoint and nothing publishes NaN.
+allocator keep running on the last good setpoint and nothing publishes NaN;
+orientation_tracking's gait node publishes the momentum-aligned reference the
+library loop gives its MPC.
 """
 
 from __future__ import annotations
@@ -14,10 +16,14 @@ import numpy as np
 import pytest
 import rclpy
 
+from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.inprocess import GraphRecord, clock_reached, start_graph
+from splitter_mpc.core.controller import MorphingController
+from splitter_mpc.core.gait import momentum_aligned_attitude
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_sim.core.model import RobotModel
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 # Wall-clock solve times differ between runs by nature; everything else must not.
@@ -136,6 +142,39 @@ def test_mpc_destroyed_mid_run_leaves_the_loop_running() -> None:
     inertia = [conv.vector3_from_msg(m).vector for m in record.messages(names.INERTIA)]
     np.testing.assert_allclose(inertia[-1], last_setpoint, rtol=0.05)
     all_finite(record)
+
+
+@pytest.mark.slow
+def test_orientation_tracking_graph_flies_the_momentum_aligned_reference() -> None:
+    """The gait node aligns the reference from the t = 0 odom and /splitter/inertia: the
+    pose it publishes is the one the library loop's gait machine gives its MPC, and the
+    first 0.3 s of flight agree."""
+    scenario = load_scenario("orientation_tracking")
+    assert scenario.controller.attitude_reference == "momentum_aligned"
+    record = run_graph(scenario, 0.3)
+    poses = record.messages(names.ATTITUDE_REFERENCE_POSE)
+    assert len(poses) == 1
+    stamp, q_ref, _ = conv.pose_from_msg(poses[0])
+    assert stamp == 0
+    odom = conv.odom_from_msg(record.messages(names.ODOM)[0])
+    inertia = conv.vector3_from_msg(record.messages(names.INERTIA)[0])
+    assert odom.t_ns == inertia.t_ns == 0
+    expected = momentum_aligned_attitude(
+        odom.orientation_wxyz,
+        odom.angular_velocity_rad_s,
+        inertia.vector,
+        scenario.controller.w_ref_rad_s,
+    )
+    np.testing.assert_allclose(q_ref, expected, atol=1e-15)
+
+    controller = MorphingController(RobotModel(), controller_config(scenario))
+    library = run_closed_loop(scenario, controller=controller, duration_s=0.3)
+    np.testing.assert_allclose(q_ref, controller.reference.q_ref_wxyz, atol=1e-15)
+    t, w = angular_velocity(record)
+    n = min(len(t), len(library.t_s))
+    assert n >= 0.3 / 0.005
+    np.testing.assert_allclose(t[:n], library.t_s[:n], atol=1e-9)
+    np.testing.assert_allclose(w[:n], library.angular_velocity_rad_s[:n], atol=1e-9)
 
 
 def landing_started(record: GraphRecord) -> bool:
