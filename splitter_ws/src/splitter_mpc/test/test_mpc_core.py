@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 import numpy as np
 import pytest
 
+from splitter_mpc.core.controller import ControllerConfig
 from splitter_mpc.core.gait import quaternion_multiply, rotation_matrix
 from splitter_mpc.core.limits import (
     limb_radial_speed_max_m_s,
@@ -13,8 +16,8 @@ from splitter_mpc.core.limits import (
     project_to_reachable,
     radius_squared_matrix,
 )
-from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
-from splitter_mpc.core.ocp import NU, NX, MpcWeights, build_ocp, dynamics_function
+from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
+from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function
 from splitter_mpc.core.solvers import SolverOptions
 from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
@@ -24,6 +27,7 @@ LIMITS = morphing_limits(MODEL, DT)
 I0 = principal_inertia(MODEL, PAPER_INITIAL_RADII_M)  # [0.48, 141.36, 141.36]
 W0 = np.array([-0.3, -0.9, 0.9])  # [rad/s] paper Table I
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+NX = StateLayout(attitude=True).nx  # [w, q, s]
 
 
 @pytest.fixture(scope="module")
@@ -245,3 +249,39 @@ def test_momentum_objective_weighs_the_rate_across_the_axis_and_the_reachable_sp
     assert costs["momentum", "inflated"] - costs["momentum", "nominal"] == pytest.approx(
         across(inflated) - across(I0) + 4 * change + 10.0 / 100.0 * change, rel=1e-6
     )
+
+
+def test_without_attitude_tracking_the_ocp_drops_q_and_keeps_the_optimum(mpc) -> None:
+    """q feeds neither the rate dynamics nor a cost when Q_q = Q_tq = 0: leaving it out
+    of the state (6 states, not 10) must not change the planned rates or inertia."""
+    lean = InertialMorphingMpc(MODEL, replace(mpc.settings, attitude_states=False))
+    assert lean.ocp.state.nx == 6 and lean.ocp.n_z < mpc.ocp.n_z
+    mpc.reset()
+    x = np.concatenate([W0, IDENTITY, I0])
+    refs = np.tile(IDENTITY, (51, 1))
+    for weights in (MpcWeights(), MpcWeights(objective="momentum")):
+        full = mpc.solve(0, x, [0, 1, 0], refs, weights)
+        mpc.reset()
+        plan = lean.solve(0, x, [0, 1, 0], refs, weights)
+        lean.reset()
+        assert full.result.converged and plan.result.converged
+        assert plan.orientation is None and full.orientation is not None
+        np.testing.assert_allclose(plan.angular_velocity, full.angular_velocity, atol=1e-6)
+        np.testing.assert_allclose(plan.inertia, full.inertia, rtol=1e-6, atol=1e-6)
+        assert plan.result.cost == pytest.approx(full.result.cost, rel=1e-6)
+
+
+def test_attitude_weights_need_the_attitude_in_the_state() -> None:
+    tracking = MpcWeights(q_q=10.0)
+    lean = MpcSettings(attitude_states=False, options=SolverOptions(compile=False))
+    assert settings_for_weights(lean, tracking).attitude_states
+    assert not settings_for_weights(MpcSettings(), MpcWeights()).attitude_states
+    with pytest.raises(ValueError, match="attitude_states"):
+        ControllerConfig(weights=tracking, mpc=lean)
+    mpc = InertialMorphingMpc(MODEL, lean)
+    with pytest.raises(ValueError, match="attitude"):
+        mpc.solve(
+            0, np.concatenate([W0, IDENTITY, I0]), [0, 1, 0], np.tile(IDENTITY, (51, 1)), tracking
+        )
+    with pytest.raises(ValueError, match="no attitude"):
+        _ = mpc.ocp.state.q

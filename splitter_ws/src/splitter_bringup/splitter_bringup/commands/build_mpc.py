@@ -1,7 +1,8 @@
 """``splitter build-mpc [SCENARIO ...]``: compile and cache the scenarios' MPC solvers.
 
-The compiled derivative code of an MPC depends on its horizon, prediction step and
-integrator (objective and weights are parameters). Each formulation the scenarios
+The compiled derivative code of an MPC depends on its horizon, prediction step,
+integrator and whether its state carries the attitude (only when the weights
+track it); objective and weights are parameters. Each formulation the scenarios
 fly is built once here, through the same code the ``inertial_morphing_mpc`` node
 runs, so that later starts load it from the cache in under a second
 (:mod:`splitter_mpc.core.codegen`). ``make test`` calls it before the suite: the
@@ -26,15 +27,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def formulations(names: list[str]) -> dict[tuple[float, str], Scenario]:
-    """(prediction step [s], integrator) -> the first scenario variant flying it."""
-    found: dict[tuple[float, str], Scenario] = {}
+def formulations(names: list[str]) -> dict[tuple[float, str, bool], Scenario]:
+    """(prediction step [s], integrator, attitude states) -> the first variant flying it."""
+    from splitter_bringup.core.closed_loop import controller_config
+
+    found: dict[tuple[float, str, bool], Scenario] = {}
     for name in names:
         for variant in load_scenario(name).variants:
             scenario = load_scenario(name, variant)
-            c = scenario.controller
-            if c.enabled:
-                found.setdefault((c.dt_s, c.integrator), scenario)
+            if scenario.controller.enabled:
+                mpc = controller_config(scenario).mpc
+                found.setdefault((mpc.dt_s, mpc.integrator, mpc.attitude_states), scenario)
     return found
 
 
@@ -50,7 +53,8 @@ def main(args: argparse.Namespace) -> int:
         settings = replace(controller_config(scenario).mpc, solver=args.solver)
         print(
             f"building the {args.solver} MPC of {scenario.name}/{scenario.variant} "
-            f"(N = {settings.horizon}, dt = {settings.dt_s} s, {settings.integrator}); "
+            f"(N = {settings.horizon}, dt = {settings.dt_s} s, {settings.integrator}, "
+            f"attitude states: {settings.attitude_states}); "
             "a first build compiles (1-2 min) ...",
             file=sys.stderr,
             flush=True,

@@ -43,7 +43,7 @@ from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.projection import project_inertia
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
-from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 from splitter_sim.core.model import RobotModel
@@ -75,7 +75,7 @@ def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> Con
     weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq, objective=c.objective)
     if mpc is None:
         mpc = MpcSettings(options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
-    mpc = replace(mpc, dt_s=c.dt_s, integrator=c.integrator)
+    mpc = settings_for_weights(replace(mpc, dt_s=c.dt_s, integrator=c.integrator), weights)
     return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc)
 
 

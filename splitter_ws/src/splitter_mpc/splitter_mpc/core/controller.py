@@ -60,6 +60,11 @@ class ControllerConfig:
                 "replan_period_s must be a multiple of control_period_s and of the prediction "
                 f"step (warm-start shift) (got {replan}, {tick}, {self.mpc.dt_ns} ns)"
             )
+        if self.weights.tracks_attitude and not self.mpc.attitude_states:
+            raise ValueError(
+                "weights q_q/q_tq track the attitude: the MPC needs attitude_states "
+                "(splitter_mpc.core.mpc.settings_for_weights)"
+            )
         if self.nominal_inertia_kg_m2 is not None:
             nominal = np.asarray(self.nominal_inertia_kg_m2, dtype=float)
             if nominal.shape != (3,) or not np.all(np.isfinite(nominal) & (nominal > 0.0)):

@@ -62,18 +62,28 @@ where it started. With the paper's printed + sign in the model a prototype
 settles about -y (w_y = -1.27), against the reference, through inertias that
 violate the triangle inequality.
 
-Orientation tracking (Table II): the reference ``q0 (x) exp(w_ref t / 2)`` turns
-at +1 rad/s about body y from the initial attitude while the body starts with
-w_y = -0.5 rad/s and H 45 deg away from the reference axis, so no inertia
-history can follow it: a reachable reference would be an attitude whose body y
-is along the world H, spinning at |H| / Iyy (not done; see the report of issue 4).
+Orientation tracking (Table II): the paper's reference ``q0 (x) exp(w_ref t / 2)``
+turns at +1 rad/s about body y from the initial attitude while the body starts
+with w_y = -0.5 rad/s and H 45 deg away from the reference axis, so no inertia
+history can follow it. The scenario flies the reachable reference instead
+(gait mode ``momentum_aligned``: body y turned onto the world H first,
+:func:`splitter_mpc.core.gait.momentum_aligned_attitude`); what is left to track
+is the phase of the spin about H, which the morphing sets through Iyy.
+
+Solve time: without attitude tracking the OCP carries no q
+(:func:`settings_for_weights`); the hardest re-plans are the first ones of a
+turn (30-40 fatrop iterations against a median of 18), because the actuators
+lag the plan (joint acceleration limits: over a 0.1 s re-plan the limbs move
+at ~0.4 m/s where the plan asks for 1-2 m/s), so each measured state is far from the
+last prediction (up to 0.5 rad/s in w_x = h_x / Ixx). With ideal actuators the
+second-hardest re-plan takes 25 iterations, not 34.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -81,9 +91,9 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_mpc.core.limits import MorphingLimits, axis_inertia_range, morphing_limits
 from splitter_mpc.core.ocp import (
     INTEGRATORS,
+    N_MEASURED,
     NG_PATH,
     NU,
-    NX,
     MpcWeights,
     build_ocp,
     dynamics_function,
@@ -110,6 +120,9 @@ class MpcSettings:
     Default: the paper's (Table I, section VI), N = 50 steps of 10 ms with explicit
     Euler. :data:`MOMENTUM_MPC_SETTINGS` is the long-horizon formulation (50 x 50 ms)
     to pair with ``MpcWeights(objective="momentum")`` (module docstring).
+    ``attitude_states``: the OCP carries the attitude q (the paper's state); it
+    must when the weights track the attitude, and need not otherwise
+    (:func:`settings_for_weights` decides; without q a solve is ~30 % faster).
     """
 
     horizon: int = 50
@@ -119,6 +132,7 @@ class MpcSettings:
     options: SolverOptions = field(default_factory=SolverOptions)
     tension_min_n: float = 1.0  # [N] taut-tether margin (soft)
     radius_rate_scale: float = 1.0  # share of the actuator radius speeds the plan may use
+    attitude_states: bool = True
 
     def __post_init__(self) -> None:
         if not (isinstance(self.horizon, int) and 2 <= self.horizon <= 1000):
@@ -141,6 +155,11 @@ PAPER_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.01, integrator="euler")
 MOMENTUM_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.05, integrator="euler")
 
 
+def settings_for_weights(settings: MpcSettings, weights: MpcWeights) -> MpcSettings:
+    """``settings`` with the attitude in the OCP state exactly when ``weights`` track it."""
+    return replace(settings, attitude_states=weights.tracks_attitude)
+
+
 @dataclass(frozen=True)
 class MpcPlan:
     """A solved plan: predicted states from ``t_ns`` on the ``dt_ns`` grid."""
@@ -148,7 +167,7 @@ class MpcPlan:
     t_ns: int  # [ns] time of x_0
     dt_ns: int  # [ns]
     angular_velocity: NDArray[np.float64]  # (N+1, 3) predicted [rad/s]
-    orientation: NDArray[np.float64]  # (N+1, 4) predicted
+    orientation: NDArray[np.float64] | None  # (N+1, 4) predicted; None: OCP without attitude
     inertia: NDArray[np.float64]  # (N+1, 3) planned principal moments [kg m^2]
     radii: NDArray[np.float64]  # (N+1, 3) planned radii [m]
     result: SolverResult
@@ -190,9 +209,12 @@ class InertialMorphingMpc:
             self.limits,
             gap_next_minus_f=s.solver == "fatrop",
             integrator=s.integrator,
+            attitude=s.attitude_states,
         )
         self.backend = make_backend(s.solver, self.ocp, s.options)
-        self._dynamics = dynamics_function(s.dt_s, self.ocp.inertia_map, s.integrator).expand()
+        self._dynamics = dynamics_function(
+            s.dt_s, self.ocp.inertia_map, s.integrator, self.ocp.state
+        ).expand()
         self._last: tuple[int, SolverResult] | None = None
 
     @property
@@ -204,15 +226,15 @@ class InertialMorphingMpc:
         self._last = None
 
     def rollout(self, x0: ArrayLike, controls: ArrayLike) -> NDArray[np.float64]:
-        """States (len(controls)+1, 10) of the MPC model from ``x0``."""
+        """States (len(controls)+1, nx) of the MPC model from ``x0``."""
         xs = [np.asarray(x0, dtype=float)]
         for u in np.asarray(controls, dtype=float).reshape(-1, NU):
             xs.append(np.asarray(self._dynamics(xs[-1], u), dtype=float).ravel())
         return np.array(xs)
 
     def _warm_start(self, t_ns: int, x0: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-        n = self.horizon
-        ng = NX + NG_PATH
+        n, nx = self.horizon, self.ocp.state.nx
+        ng = nx + NG_PATH
         shift = None
         if self._last is not None:
             last_t, last = self._last
@@ -225,7 +247,7 @@ class InertialMorphingMpc:
             return z, np.zeros(self.ocp.n_g), np.zeros(self.ocp.n_z)
         xs, us = self.ocp.split(last.z)
         us = np.vstack([us[shift:], np.zeros((shift, NU))])
-        xs = np.vstack([xs[shift:], np.zeros((shift, NX))])
+        xs = np.vstack([xs[shift:], np.zeros((shift, nx))])
         xs[0] = x0
         if shift > 0:  # roll the tail out from the last kept state
             xs[n - shift :] = self.rollout(xs[n - shift], us[n - shift :])
@@ -253,7 +275,12 @@ class InertialMorphingMpc:
         executing it. The warm start is updated by usable solutions (and by every
         finite sqp/rti iterate).
         """
-        measured = np.asarray(state, dtype=float).reshape(NX)
+        if weights.tracks_attitude and not self.settings.attitude_states:
+            raise ValueError(
+                "weights q_q/q_tq track the attitude, but this MPC was built without it "
+                "(MpcSettings.attitude_states; see settings_for_weights)"
+            )
+        measured = np.asarray(state, dtype=float).reshape(N_MEASURED)
         x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
         z0, lam_g0, lam_z0 = self._warm_start(int(t_ns), x0)
         lbz, ubz = self.ocp.variable_bounds(x0)
@@ -280,14 +307,15 @@ class InertialMorphingMpc:
         )
         result = self.backend.solve(data)
         xs, _ = self.ocp.split(result.z)
+        layout = self.ocp.state
         if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
             self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
         return MpcPlan(
             t_ns=int(t_ns),
             dt_ns=self.settings.dt_ns,
-            angular_velocity=xs[:, 0:3],
-            orientation=xs[:, 3:7],
+            angular_velocity=xs[:, layout.w],
+            orientation=xs[:, layout.q] if layout.attitude else None,
             inertia=self.ocp.inertia_of(xs),
-            radii=np.sqrt(np.maximum(xs[:, 7:10], 0.0)),
+            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq], 0.0)),
             result=result,
         )

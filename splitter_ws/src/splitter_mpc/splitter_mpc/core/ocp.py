@@ -5,7 +5,14 @@ The principal moments are linear in the squared radii (eq. 2): ``I = M s``,
 ``s = (r_x^2, r_y^2, r_z^2)``. This OCP carries the inertia part of the state in
 those coordinates, ``x = [w, q, s]``, ``u = [ds, sigma]`` with ``dI = M ds``: a
 linear, invertible change of variables, so the optimum is the paper's, while
-every hardware limit becomes a simple bound (see :mod:`.limits`):
+every hardware limit becomes a simple bound (see :mod:`.limits`).
+
+The attitude q enters neither the rate dynamics nor any cost but J_q (Q_q,
+Q_tq): without attitude tracking the OCP is built without it, ``x = [w, s]``
+(:class:`StateLayout`), the same optimum for w and s with 6 states instead of
+10 (a fatrop iteration is ~30 % cheaper; ``splitter bench mpc``).
+
+Hardware limits as bounds:
 
 * radius bounds: ``r_min^2 <= s_k <= r_max^2`` (exactly the reachable set; the
   paper's ``0 < I <= I_max`` follows from it);
@@ -54,12 +61,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_mpc.core.limits import MorphingLimits
 
-NX = 10  # [w(3), q(4), s(3)] with s the squared radii
+N_MEASURED = 10  # measured state [w (3), q (4, wxyz), principal moments (3)]
 NU = 4  # [ds(3), tension slack]
 NG_PATH = 1  # tension
 W = slice(0, 3)
-Q = slice(3, 7)
-RADII_SQ = slice(7, 10)
 # q_w(3), r(3), q_t(3), q_q, q_tq, slack penalty, q_i(3), paper blend, spin-rate scales (2)
 N_WEIGHTS = 18
 N_MOMENTUM_TARGET = 5  # reference axis e (3), |H| [kg m^2/s], |w_ref| [rad/s]
@@ -81,67 +86,113 @@ def quat_multiply(p: ca.SX, q: ca.SX) -> ca.SX:
     )
 
 
-def _euler_step(x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM) -> tuple[ca.SX, ca.SX]:
+@dataclass(frozen=True)
+class StateLayout:
+    """Where w, q and s sit in the OCP state: ``[w, q, s]``, or ``[w, s]`` without attitude."""
+
+    attitude: bool = True
+
+    @property
+    def nx(self) -> int:
+        return 10 if self.attitude else 6
+
+    @property
+    def w(self) -> slice:
+        return W
+
+    @property
+    def q(self) -> slice:
+        if not self.attitude:
+            raise ValueError("this OCP carries no attitude (built without attitude tracking)")
+        return slice(3, 7)
+
+    @property
+    def radii_sq(self) -> slice:
+        return slice(7, 10) if self.attitude else slice(3, 6)
+
+
+def _euler_step(
+    x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM, layout: StateLayout
+) -> tuple[ca.SX, ca.SX | None]:
     """(h_{k+1}, q_{k+1}) by explicit Euler in angular momentum (the paper's eq. 13-16)."""
-    w, q, s_sq = x[W], x[Q], x[RADII_SQ]
+    w, s_sq = x[W], x[layout.radii_sq]
     momentum = ca.mtimes(m, s_sq) * w
     # Correct sign (the paper's eq. 13-14 print +): d/dt(I w) = -w x (I w).
-    return momentum - dt_s * ca.cross(w, momentum), q + 0.5 * dt_s * quat_multiply(
-        q, ca.vertcat(0, w)
-    )
+    momentum_next = momentum - dt_s * ca.cross(w, momentum)
+    if not layout.attitude:
+        return momentum_next, None
+    q = x[layout.q]
+    return momentum_next, q + 0.5 * dt_s * quat_multiply(q, ca.vertcat(0, w))
 
 
-def _rk4_step(x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM) -> tuple[ca.SX, ca.SX]:
+def _rk4_step(
+    x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM, layout: StateLayout
+) -> tuple[ca.SX, ca.SX | None]:
     """(h_{k+1}, q_{k+1}) by classical RK4 of ``dh/dt = -w x h``, ``dq/dt = q (x) [0, w] / 2``.
 
     ``w = h / I(tau)`` with the inertia moving linearly from I_k to I_{k+1} over the
     step, as the setpoints played back at every control tick move it.
     """
-    q0, s_sq = x[Q], x[RADII_SQ]
+    s_sq = x[layout.radii_sq]
+    q0 = x[layout.q] if layout.attitude else ca.SX.zeros(4)
     inertia_0 = ca.mtimes(m, s_sq)
     d_inertia = ca.mtimes(m, u[0:3])
     h0 = inertia_0 * x[W]
 
     def rates(h: ca.SX, q: ca.SX, tau: float) -> tuple[ca.SX, ca.SX]:
         w = h / (inertia_0 + tau * d_inertia)
-        return -ca.cross(w, h), 0.5 * quat_multiply(q, ca.vertcat(0, w))
+        q_rate = 0.5 * quat_multiply(q, ca.vertcat(0, w)) if layout.attitude else q
+        return -ca.cross(w, h), q_rate
 
     k1h, k1q = rates(h0, q0, 0.0)
     k2h, k2q = rates(h0 + 0.5 * dt_s * k1h, q0 + 0.5 * dt_s * k1q, 0.5)
     k3h, k3q = rates(h0 + 0.5 * dt_s * k2h, q0 + 0.5 * dt_s * k2q, 0.5)
     k4h, k4q = rates(h0 + dt_s * k3h, q0 + dt_s * k3q, 1.0)
     h1 = h0 + dt_s / 6.0 * (k1h + 2.0 * k2h + 2.0 * k3h + k4h)
-    q1 = q0 + dt_s / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
-    return h1, q1
+    if not layout.attitude:
+        return h1, None
+    return h1, q0 + dt_s / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
 
 
 def discrete_dynamics(
-    x: ca.SX, u: ca.SX, dt_s: float, inertia_map: ArrayLike, integrator: str = "euler"
+    x: ca.SX,
+    u: ca.SX,
+    dt_s: float,
+    inertia_map: ArrayLike,
+    integrator: str = "euler",
+    *,
+    layout: StateLayout = StateLayout(),
 ) -> ca.SX:
     """x_{k+1} = F(x_k, u_k) (module docstring); ``inertia_map`` is M with ``I = M s``.
 
-    ``integrator``: ``"euler"`` (the paper's scheme) or ``"rk4"``.
+    ``integrator``: ``"euler"`` (the paper's scheme) or ``"rk4"``; ``layout``: with
+    or without the attitude q.
     """
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
     m = ca.DM(np.asarray(inertia_map, dtype=float))
-    s_next = x[RADII_SQ] + u[0:3]
+    s_next = x[layout.radii_sq] + u[0:3]
     step = _euler_step if integrator == "euler" else _rk4_step
-    momentum_next, q_next = step(x, u, dt_s, m)
+    momentum_next, q_next = step(x, u, dt_s, m, layout)
     w_next = momentum_next / ca.mtimes(m, s_next)
+    if q_next is None:
+        return ca.vertcat(w_next, s_next)
     return ca.vertcat(w_next, q_next / ca.norm_2(q_next), s_next)
 
 
 def dynamics_function(
-    dt_s: float, inertia_map: ArrayLike, integrator: str = "euler"
+    dt_s: float,
+    inertia_map: ArrayLike,
+    integrator: str = "euler",
+    layout: StateLayout = StateLayout(),
 ) -> ca.Function:
     """F(x, u) as a CasADi function (SX)."""
-    x = ca.SX.sym("x", NX)
+    x = ca.SX.sym("x", layout.nx)
     u = ca.SX.sym("u", NU)
     return ca.Function(
         "F",
         [x, u],
-        [discrete_dynamics(x, u, dt_s, inertia_map, integrator)],
+        [discrete_dynamics(x, u, dt_s, inertia_map, integrator, layout=layout)],
         ["x", "u"],
         ["x_next"],
     )
@@ -216,6 +267,11 @@ class MpcWeights:
         if self.objective not in OBJECTIVES:
             raise ValueError(f"MpcWeights.objective must be one of {OBJECTIVES}")
 
+    @property
+    def tracks_attitude(self) -> bool:
+        """Whether J_q weighs the attitude (the OCP then needs q in its state)."""
+        return self.q_q > 0.0 or self.q_tq > 0.0
+
     def residual_scales(self, reference_axis: ArrayLike = (0.0, 0.0, 0.0)) -> NDArray[np.float64]:
         """The weights as OCP parameters: least-squares residual scales.
 
@@ -266,6 +322,7 @@ class MorphingOcp:
     ng: list[int]
     equality: list[bool]
     gap_next_minus_f: bool
+    state: StateLayout
 
     @property
     def n_z(self) -> int:
@@ -277,23 +334,25 @@ class MorphingOcp:
 
     def x_index(self, k: int) -> slice:
         """Slice of x_k in z."""
-        start = k * (NX + NU)
-        return slice(start, start + NX)
+        nx = self.state.nx
+        start = k * (nx + NU)
+        return slice(start, start + nx)
 
     def u_index(self, k: int) -> slice:
         """Slice of u_k in z (k < N)."""
-        start = k * (NX + NU) + NX
+        nx = self.state.nx
+        start = k * (nx + NU) + nx
         return slice(start, start + NU)
 
     def split(self, z: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """States (N+1, NX) and controls (N, NU) of a decision vector."""
+        """States (N+1, nx) and controls (N, NU) of a decision vector."""
         z = np.asarray(z, dtype=float).ravel()
-        n = self.horizon
-        xs = np.empty((n + 1, NX))
-        us = z[: n * (NX + NU)].reshape(n, NX + NU)
-        xs[:n] = us[:, :NX]
-        xs[n] = z[n * (NX + NU) :]
-        return xs, us[:, NX:].copy()
+        n, nx = self.horizon, self.state.nx
+        xs = np.empty((n + 1, nx))
+        us = z[: n * (nx + NU)].reshape(n, nx + NU)
+        xs[:n] = us[:, :nx]
+        xs[n] = z[n * (nx + NU) :]
+        return xs, us[:, nx:].copy()
 
     def join(self, xs: ArrayLike, us: ArrayLike) -> NDArray[np.float64]:
         """Inverse of :meth:`split`."""
@@ -310,55 +369,59 @@ class MorphingOcp:
     def state_from_measurement(
         self, angular_velocity: ArrayLike, orientation_wxyz: ArrayLike, inertia: ArrayLike
     ) -> NDArray[np.float64]:
-        """x_0 = (w, q / |q|, s): squared radii of the measured moments, clipped to the bounds."""
+        """x_0 = (w, q / |q|, s): squared radii of the measured moments, clipped to the bounds.
+
+        Without attitude states q is left out: ``(w, s)``.
+        """
         lim = self.limits
         s_sq = np.clip(lim.radii_squared(inertia), lim.radius_min_m**2, lim.radius_max_m**2)
+        w = np.asarray(angular_velocity, dtype=float)
+        if not self.state.attitude:
+            return np.concatenate([w, s_sq])
         q = np.asarray(orientation_wxyz, dtype=float)
-        return np.concatenate(
-            [np.asarray(angular_velocity, dtype=float), q / np.linalg.norm(q), s_sq]
-        )
+        return np.concatenate([w, q / np.linalg.norm(q), s_sq])
 
     def inertia_of(self, states: ArrayLike) -> NDArray[np.float64]:
-        """Principal moments (..., 3) of states (..., NX)."""
-        return np.asarray(states, dtype=float)[..., RADII_SQ] @ self.inertia_map.T
+        """Principal moments (..., 3) of states (..., nx)."""
+        return np.asarray(states, dtype=float)[..., self.state.radii_sq] @ self.inertia_map.T
 
     def variable_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
         """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0."""
         lim = self.limits
-        n = self.horizon
+        n, nx, radii_sq = self.horizon, self.state.nx, self.state.radii_sq
         x0 = np.asarray(x_init, dtype=float)
-        r_now = np.sqrt(x0[RADII_SQ])
+        r_now = np.sqrt(x0[radii_sq])
         # both r_k and r_{k+1} are >= the smallest radius reachable by stage k + 1
         k = np.arange(1, n + 1)[:, None]
         r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
         rate = 2.0 * lim.radius_step_max_m * r_low  # (n, 3) [m^2] per step
-        lo = np.full((n, NX + NU), -np.inf)
-        hi = np.full((n, NX + NU), np.inf)
-        lo[:, RADII_SQ] = lim.radius_min_m**2
-        hi[:, RADII_SQ] = lim.radius_max_m**2
-        lo[:, NX : NX + 3] = -rate
-        hi[:, NX : NX + 3] = rate
-        lo[:, NX + 3] = 0.0
-        lo[0, :NX] = x0
-        hi[0, :NX] = x0
-        lo_n = np.full(NX, -np.inf)
-        hi_n = np.full(NX, np.inf)
-        lo_n[RADII_SQ] = lim.radius_min_m**2
-        hi_n[RADII_SQ] = lim.radius_max_m**2
+        lo = np.full((n, nx + NU), -np.inf)
+        hi = np.full((n, nx + NU), np.inf)
+        lo[:, radii_sq] = lim.radius_min_m**2
+        hi[:, radii_sq] = lim.radius_max_m**2
+        lo[:, nx : nx + 3] = -rate
+        hi[:, nx : nx + 3] = rate
+        lo[:, nx + 3] = 0.0
+        lo[0, :nx] = x0
+        hi[0, :nx] = x0
+        lo_n = np.full(nx, -np.inf)
+        hi_n = np.full(nx, np.inf)
+        lo_n[radii_sq] = lim.radius_min_m**2
+        hi_n[radii_sq] = lim.radius_max_m**2
         return np.concatenate([lo.ravel(), lo_n]), np.concatenate([hi.ravel(), hi_n])
 
     def constraint_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
         """(lbg, ubg): gaps = 0, tension rows (module docstring)."""
         lim = self.limits
-        n = self.horizon
-        r_x = float(np.sqrt(np.asarray(x_init, dtype=float)[RADII_SQ][0]))
+        n, nx = self.horizon, self.state.nx
+        r_x = float(np.sqrt(np.asarray(x_init, dtype=float)[self.state.radii_sq][0]))
         k = np.arange(n)
         r_low = np.maximum(lim.radius_min_m[0], r_x - lim.radius_rate_max_m_s[0] * k * self.dt_s)
-        lo = np.zeros((n, NX + NG_PATH))
-        hi = np.zeros((n, NX + NG_PATH))
-        lo[:, NX] = lim.tension_min_n / (lim.body_mass_kg * r_low)
-        lo[0, NX] = -np.inf  # x_0 is measured: its tension is what it is
-        hi[:, NX] = np.inf
+        lo = np.zeros((n, nx + NG_PATH))
+        hi = np.zeros((n, nx + NG_PATH))
+        lo[:, nx] = lim.tension_min_n / (lim.body_mass_kg * r_low)
+        lo[0, nx] = -np.inf  # x_0 is measured: its tension is what it is
+        hi[:, nx] = np.inf
         return lo.ravel(), hi.ravel()
 
 
@@ -368,12 +431,16 @@ def build_ocp(
     limits: MorphingLimits,
     gap_next_minus_f: bool = False,
     integrator: str = "euler",
+    *,
+    attitude: bool = True,
 ) -> MorphingOcp:
     """Build the stage-wise OCP of the module docstring (SX, built once).
 
     ``gap_next_minus_f`` writes the gaps as ``x_{k+1} - F(x_k, u_k)`` (fatrop's
     structure detection requires it); the default ``F(x_k, u_k) - x_{k+1}`` is the
     ``[A B -I]`` block form hpipm expects. ``integrator`` is F's scheme.
+    ``attitude``: carry q (needed by J_q); without it the attitude weights have
+    no state to weigh and must be zero.
     """
     if horizon < 2:
         raise ValueError(f"horizon must be >= 2, got {horizon}")
@@ -392,9 +459,11 @@ def build_ocp(
     axis, momentum_norm, spin_ref = target[0:3], target[3], target[4]
     inertia_map = np.linalg.inv(limits.radius_squared_matrix)
     m = ca.DM(inertia_map)
-    dynamics = dynamics_function(dt_s, inertia_map, integrator)
+    state = StateLayout(attitude)
+    nx, radii_sq = state.nx, state.radii_sq
+    dynamics = dynamics_function(dt_s, inertia_map, integrator, state)
 
-    xs = [ca.SX.sym(f"x{k}", NX) for k in range(horizon + 1)]
+    xs = [ca.SX.sym(f"x{k}", nx) for k in range(horizon + 1)]
     us = [ca.SX.sym(f"u{k}", NU) for k in range(horizon)]
 
     def rate_error(x: ca.SX) -> ca.SX:
@@ -404,7 +473,7 @@ def build_ocp(
         across the reference axis (zero at any spin about e) and, along e, how far
         the body momentum is from ``|H| e`` (tells +e from -e).
         """
-        momentum = ca.mtimes(m, x[RADII_SQ]) * x[W]
+        momentum = ca.mtimes(m, x[radii_sq]) * x[W]
         paper = x[W] - w_ref
         perpendicular = x[W] - axis * ca.dot(axis, x[W])
         along = axis * ca.dot(axis, (momentum - momentum_norm * axis) / i_nom)
@@ -412,12 +481,15 @@ def build_ocp(
 
     def spin_error(x: ca.SX) -> ca.SX:
         """Rate of a spin about e with this configuration, minus the reachable target."""
-        axis_inertia = ca.dot(axis * axis, ca.mtimes(m, x[RADII_SQ])) + paper_blend
+        axis_inertia = ca.dot(axis * axis, ca.mtimes(m, x[radii_sq])) + paper_blend
         return momentum_norm / axis_inertia - spin_ref
 
     def attitude_residual(x: ca.SX, k: int, scale: ca.SX) -> ca.SX:
+        if not attitude:  # J_q needs q; its weights are checked to be zero (mpc.py)
+            return ca.SX(0, 1)
         qr = q_ref[:, k]
-        return scale * (x[Q] - qr * ca.dot(qr, x[Q]))  # sqrt(Q) (E - q_ref q_ref^T) q
+        q = x[state.q]
+        return scale * (q - qr * ca.dot(qr, q))  # sqrt(Q) (E - q_ref q_ref^T) q
 
     z_parts: list[ca.SX] = []
     g_parts: list[ca.SX] = []
@@ -430,7 +502,7 @@ def build_ocp(
             s_w * rate_error(x),
             s_spin * spin_error(x),
             attitude_residual(x, k, s_q),
-            s_i * (ca.mtimes(m, x[RADII_SQ]) - i_nom) / i_nom,
+            s_i * (ca.mtimes(m, x[radii_sq]) - i_nom) / i_nom,
             s_r * ca.mtimes(m, u[0:3]),  # dI = M ds, weighed as the paper weighs dI
             np.sqrt(2.0 * _SLACK_QUADRATIC) * u[3],
         ]
@@ -456,11 +528,12 @@ def build_ocp(
         objective=0.5 * ca.sumsqr(residual) + linear_cost,
         g=ca.vertcat(*g_parts),
         layout=layout,
-        nx=[NX] * (horizon + 1),
+        nx=[nx] * (horizon + 1),
         nu=[NU] * horizon + [0],
         ng=[NG_PATH] * horizon + [0],
-        equality=([True] * NX + [False] * NG_PATH) * horizon,
+        equality=([True] * nx + [False] * NG_PATH) * horizon,
         gap_next_minus_f=gap_next_minus_f,
+        state=state,
     )
 
 
