@@ -30,7 +30,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
-from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES, MpcWeights
 from splitter_mpc.core.solvers import SOLVERS, SolverOptions
 from splitter_msgs_py import names
@@ -92,7 +92,7 @@ PARAMETERS = (
     ParameterSpec("solver", "fatrop", "optimisation back-end", choices=SOLVERS),
     ParameterSpec("max_iter", 30, "iteration cap per solve", 1, 10000),
     ParameterSpec("max_solve_time_s", 0.08, "wall-time cap per solve [s]", 1e-3, 60.0),
-    ParameterSpec("tolerance", 1e-8, "solver tolerance", 1e-14, 1e-2),
+    ParameterSpec("tolerance", 1e-6, "solver tolerance (scaled problem)", 1e-14, 1e-2),
     ParameterSpec("compile", True, "compile the derivative code with gcc (cached on disk)"),
     ParameterSpec(
         "cache_dir", "", "compiled-code cache ('' = $SPLITTER_CACHE_DIR or ~/.cache/splitter)"
@@ -138,7 +138,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
         return ControllerConfig(
             enabled=bool(values["enabled"]),
             weights=weights,
-            mpc=mpc,
+            mpc=settings_for_weights(mpc, weights),
             replan_period_s=float(values["replan_period_s"]),
             control_period_s=float(values["control_period_s"]),
         )
