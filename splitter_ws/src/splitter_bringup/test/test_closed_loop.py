@@ -3,8 +3,8 @@
 Physics first: angular momentum is conserved in torque-free flight whatever the
 controller does, so the MPC can only turn it into the body y axis (and the final
 spin rate is |H| / Iyy). The paper's own numbers are compared where this
-implementation reproduces them; where it does not, the strict xfail tests
-record the gap (explained in the splitter_mpc.core.mpc docstring) and will flag the day it closes.
+implementation reproduces them; where it does not, the tests state the physical
+reason (explained in the splitter_mpc.core.mpc docstring).
 For the same reason orientation tracking is measured against a reachable attitude
 reference, body y along the conserved H (``attitude_reference: momentum_aligned``).
 """
