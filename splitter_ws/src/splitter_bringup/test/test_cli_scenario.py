@@ -31,9 +31,12 @@ def test_shipped_scenarios_load_with_paper_numbers() -> None:
     np.testing.assert_allclose(spin.initial_angular_velocity_rad_s, [-0.3, -0.9, 0.9])
     assert spin.controller.r == (0.01, 1.0, 1.0)
     assert spin.variants == ("mpc", "paper_mpc", "open_loop")
-    assert (spin.controller.objective, spin.controller.dt_s) == ("momentum", 0.05)
+    c = spin.controller
+    assert (c.objective, c.horizon, c.dt_s, c.integrator) == ("momentum", 25, 0.1, "rk4")
+    assert c.weights_step_s == 0.05  # Table I's weights per 50 ms, on a 100 ms grid
     paper = load_scenario("spin_stabilization", "paper_mpc").controller
     assert (paper.objective, paper.dt_s, paper.q_w) == ("paper", 0.01, (100.0, 100.0, 100.0))
+    assert (paper.horizon, paper.integrator, paper.weights_step_s) == (50, "euler", None)
     assert not load_scenario("spin_stabilization", "open_loop").controller.enabled
     orient = load_scenario("orientation_tracking", "velocity_only")
     assert orient.controller.q_q == 0.0
@@ -60,6 +63,9 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         ("objective", "nope"),
         ("integrator", "nope"),
         ("dt_s", "-0.05"),
+        ("horizon", "1"),
+        ("horizon", "2.5"),
+        ("weights_step_s", "0"),
         ("attitude_reference", "nope"),
     ):
         bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
@@ -76,7 +82,8 @@ def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
     }
     # the first variant (in name order) flying a formulation builds it; the attitude is
     # in the state only where the weights track it
-    assert found[0.05, "euler", True] == "orientation_tracking/quaternion_tracking"
-    assert found[0.05, "euler", False] == "orientation_tracking/velocity_only"
-    assert found[0.01, "euler", False].startswith("lunar_jumping/")
+    assert found[50, 0.05, "euler", True] == "orientation_tracking/quaternion_tracking"
+    assert found[50, 0.05, "euler", False] == "orientation_tracking/velocity_only"
+    assert found[50, 0.01, "euler", False].startswith("lunar_jumping/")
+    assert found[25, 0.1, "rk4", False] == "spin_stabilization/mpc"
     assert len(found) == len(set(found.values()))

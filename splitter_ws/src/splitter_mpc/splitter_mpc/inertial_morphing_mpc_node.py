@@ -75,6 +75,14 @@ PARAMETERS = (
     ParameterSpec("horizon", 50, "prediction horizon N [steps]", 2, 1000),
     ParameterSpec("dt_s", 0.01, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
     ParameterSpec(
+        "weights_step_s",
+        0.0,
+        "prediction step the weights are given for [s] (0: per stage); the stage weights "
+        "then keep one continuous-time cost",
+        0.0,
+        1.0,
+    ),
+    ParameterSpec(
         "integrator",
         "euler",
         "prediction model integrator (euler: the paper's)",
@@ -125,6 +133,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
             options=options,
             tension_min_n=float(values["tension_min_n"]),
             radius_rate_scale=float(values["radius_rate_scale"]),
+            weights_step_s=float(values["weights_step_s"]) or None,
         )
         weights = MpcWeights(
             q_w=tuple(values["q_w"]),

@@ -285,3 +285,34 @@ def test_attitude_weights_need_the_attitude_in_the_state() -> None:
         )
     with pytest.raises(ValueError, match="no attitude"):
         _ = mpc.ocp.state.q
+
+
+def test_weights_per_stage_keep_one_continuous_time_cost() -> None:
+    """The same flight (rate error held, inertia moving at a constant rate, 0.4 s) costs
+    the same on 8 steps of 50 ms with the weights as given and on 4 steps of 100 ms
+    with ``per_stage(2)``: running terms grow with the step, R (on dI per step) falls."""
+    from splitter_mpc.core.ocp import parameter_vector
+
+    weights = MpcWeights(q_w=(100.0, 30.0, 100.0), r=(0.01, 1.0, 2.0), q_t=(7.0, 7.0, 7.0))
+    s_rate = np.array([-0.5, 0.05, -0.02])  # [m^2/s] constant radius-squared rate
+    w = np.array([0.3, 0.8, -0.2])  # [rad/s] held
+    costs = []
+    for steps, dt, stage_weights in ((8, 0.05, weights), (4, 0.1, weights.per_stage(2.0))):
+        ocp = build_ocp(steps, dt, morphing_limits(MODEL, dt), attitude=False)
+        cost = ca.Function("J", [ocp.z, ocp.p], [ocp.objective])
+        t = dt * np.arange(steps + 1)[:, None]
+        xs = np.hstack([np.tile(w, (steps + 1, 1)), LIMITS.radii_squared(I0) + s_rate * t])
+        us = np.hstack([np.tile(s_rate * dt, (steps, 1)), np.zeros((steps, 1))])
+        refs = np.tile(IDENTITY, (steps + 1, 1))
+        p = parameter_vector(ocp.layout, [0.0, 1.0, 0.0], refs, stage_weights, I0)
+        costs.append(float(cost(ocp.join(xs, us), p)))
+    assert costs[1] == pytest.approx(costs[0], rel=1e-12)
+    # the terminal weights are not running ones; a step as given changes nothing
+    assert weights.per_stage(2.0).q_t == weights.q_t
+    assert weights.per_stage(1.0) is weights
+    with pytest.raises(ValueError, match="step_ratio"):
+        weights.per_stage(0.0)
+    assert MpcSettings(dt_s=0.1, weights_step_s=0.05).weights_step_ratio == pytest.approx(2.0)
+    assert MpcSettings(dt_s=0.1).weights_step_ratio == 1.0
+    with pytest.raises(ValueError, match="weights_step_s"):
+        MpcSettings(weights_step_s=-0.05)

@@ -27,17 +27,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def formulations(names: list[str]) -> dict[tuple[float, str, bool], Scenario]:
-    """(prediction step [s], integrator, attitude states) -> the first variant flying it."""
+def formulations(names: list[str]) -> dict[tuple[int, float, str, bool], Scenario]:
+    """(horizon, prediction step [s], integrator, attitude states) -> first variant flying it."""
     from splitter_bringup.core.closed_loop import controller_config
 
-    found: dict[tuple[float, str, bool], Scenario] = {}
+    found: dict[tuple[int, float, str, bool], Scenario] = {}
     for name in names:
         for variant in load_scenario(name).variants:
             scenario = load_scenario(name, variant)
             if scenario.controller.enabled:
                 mpc = controller_config(scenario).mpc
-                found.setdefault((mpc.dt_s, mpc.integrator, mpc.attitude_states), scenario)
+                key = (mpc.horizon, mpc.dt_s, mpc.integrator, mpc.attitude_states)
+                found.setdefault(key, scenario)
     return found
 
 

@@ -68,14 +68,22 @@ def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
 def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> ControllerConfig:
     """The MPC configuration of a scenario: the node's parameters, as a core object.
 
-    The scenario fixes the formulation (objective, prediction step, integrator);
+    The scenario fixes the formulation (objective, horizon, prediction step,
+    integrator, the step the weights are given for);
     ``mpc`` brings the solver, its options and the hardware margins.
     """
     c = scenario.controller
     weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq, objective=c.objective)
     if mpc is None:
         mpc = MpcSettings(options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
-    mpc = settings_for_weights(replace(mpc, dt_s=c.dt_s, integrator=c.integrator), weights)
+    formulation = replace(
+        mpc,
+        horizon=c.horizon,
+        dt_s=c.dt_s,
+        integrator=c.integrator,
+        weights_step_s=c.weights_step_s,
+    )
+    mpc = settings_for_weights(formulation, weights)
     return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc)
 
 

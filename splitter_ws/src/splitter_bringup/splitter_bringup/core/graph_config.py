@@ -92,8 +92,10 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
         "q_q": float(c.q_q),
         "q_tq": float(c.q_tq),
         "objective": c.objective,
+        "horizon": int(c.horizon),
         "dt_s": float(c.dt_s),
         "integrator": c.integrator,
+        "weights_step_s": 0.0 if c.weights_step_s is None else float(c.weights_step_s),
     }
 
 

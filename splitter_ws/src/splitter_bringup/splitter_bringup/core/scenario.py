@@ -67,8 +67,12 @@ class ControllerSpec:
     # N = 50 x 10 ms (section VI); "momentum" weighs the rate across the reference
     # axis and the reachable spin about it, over a longer prediction step.
     objective: str = "paper"
+    horizon: int = 50  # N [steps]
     dt_s: float = 0.01  # [s] prediction step
     integrator: str = "euler"
+    # [s] the prediction step the weights are given for (None: per stage, whatever
+    # the step); with it the stage weights keep one continuous-time cost on any grid
+    weights_step_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,13 @@ def _positive(data: Mapping[str, Any], key: str, default: float | None = None) -
     return number
 
 
+def _horizon(data: Mapping[str, Any]) -> int:
+    value = data.get("horizon", 50)
+    if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 1000:
+        raise ScenarioError(f"horizon: expected an integer in [2, 1000], got {value!r}")
+    return value
+
+
 def load_scenario(name_or_path: str | Path, variant: str | None = None) -> Scenario:
     """Load a shipped scenario by name, or a YAML file by path, with one variant applied."""
     path = Path(name_or_path)
@@ -176,8 +187,12 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         q_tq=float(ctrl.get("q_tq", 0.0)),
         attitude_reference=str(ctrl.get("attitude_reference", "integrate_w_ref")),
         objective=str(ctrl.get("objective", "paper")),
+        horizon=_horizon(ctrl),
         dt_s=_positive(ctrl, "dt_s", 0.01),
         integrator=str(ctrl.get("integrator", "euler")),
+        weights_step_s=(
+            None if ctrl.get("weights_step_s") is None else _positive(ctrl, "weights_step_s")
+        ),
     )
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")

@@ -148,6 +148,7 @@ class OptiBaselineMpc:
         """Same contract as :meth:`InertialMorphingMpc.solve` (no q_i term)."""
         if any(weights.q_i):
             raise ValueError("the Opti baseline has no nominal-configuration term q_i")
+        weights = weights.per_stage(self.settings.weights_step_ratio)
         opti, lim, n, dt = self._opti, self.limits, self.horizon, self.settings.dt_s
         x0 = np.asarray(state, dtype=float).reshape(10).copy()
         x0[3:7] /= np.linalg.norm(x0[3:7])

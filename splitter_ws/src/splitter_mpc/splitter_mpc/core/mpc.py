@@ -12,9 +12,11 @@ Two formulations (``MpcSettings`` + ``MpcWeights.objective``)
   10 ms, explicit Euler, J_w on ``w - w_ref``, with the correct gyroscopic sign
   and the hardware limits. The spin_stabilization ``paper_mpc`` variant.
 * **momentum** (``MOMENTUM_MPC_SETTINGS`` + ``objective="momentum"``; node
-  parameters ``objective: momentum, dt_s: 0.05``; the scenarios' ``mpc``
-  variant of spin_stabilization): N = 50 x 50 ms (2.5 s) with the same Euler
-  model and the paper's weights on what a spin about ``e = w_ref / |w_ref|`` means:
+  parameters ``objective: momentum, horizon: 25, dt_s: 0.1, integrator: rk4,
+  weights_step_s: 0.05``; the ``mpc`` variant of spin_stabilization): a 2.5 s
+  prediction, 25 RK4 steps of 100 ms, and the paper's weights (given per 50 ms
+  step, :meth:`~splitter_mpc.core.ocp.MpcWeights.per_stage`) on what a spin about
+  ``e = w_ref / |w_ref|`` means:
   the body rate *across* e, ``(1 - e e') w`` (zero at any spin about e), the body
   momentum *along* e, ``e'(I w - |H| e) / I_nom`` (tells +e from -e), and the spin
   rate the configuration gives about e, ``|H| / (e' I e)``, against the reachable
@@ -39,20 +41,24 @@ metric             paper's  paper   momentum
                    figure   mode    (mpc)
 =================  =======  ======  ========
 residual_wx rad/s  0.004    0.11    0.0036
-residual_wz rad/s  0.006    0.28    0.0023
-wy_final rad/s     1.28     1.07    1.106
+residual_wz rad/s  0.006    0.28    0.0018
+wy_final rad/s     1.28     1.07    1.105
 alignment |wy|/|w|  -       0.971   1.000
-time_constant s    1.3      3.9     1.57
-settling_time s    2.8      6.9     2.96
+time_constant s    1.3      3.9     1.63
+settling_time s    2.8      6.9     2.97
 =================  =======  ======  ========
 
 Weighing the rate across e (not the momentum ``h_x / I_nom``) matters: with
 ``h_x / I_nom`` the plan shrinks Ixx to turn faster (``w_x = h_x / Ixx``, up to
 3 rad/s) and leaves a 0.03 rad/s nutation that decays over seconds; with the
-body rate it damps the nutation as it turns. The prediction model is not the
-limit: RK4 over 25 x 0.1 s gives 0.0033 / 0.0025 rad/s and 3.0 s; explicit
-Euler's derivative code is several times smaller and faster to solve (a step's
-rate error ``dt |w|`` <= 0.1 rad is fed back every 0.1 s).
+body rate it damps the nutation as it turns. The grid: 50 explicit-Euler steps of
+50 ms with the weights per stage (the first version) give 0.0036 / 0.0023 rad/s
+and 2.955 s; 25 RK4 steps of 100 ms with the same weights per stage 0.0033 /
+0.0025 and 2.995 s (R, on a dI twice as large, weighs four times as much against
+the rates); with the weights kept per 50 ms (one continuous-time cost) 0.0036 /
+0.0018 and 2.97 s, with half the stages: the hardest re-plans take 34 and 27
+fatrop iterations instead of 41 and 34 (``splitter bench mpc``: p99 6-8 ms
+against 10-13).
 
 w_y is not set by the reference: a final spin about y is ``|H| / Iyy``
 (|H| = 179.9 kg m^2/s). w_ref = 1 needs Iyy = 180 > I_max = 162.9, so the
@@ -118,7 +124,7 @@ class MpcSettings:
     """Horizon, integrator, solver and hardware margins.
 
     Default: the paper's (Table I, section VI), N = 50 steps of 10 ms with explicit
-    Euler. :data:`MOMENTUM_MPC_SETTINGS` is the long-horizon formulation (50 x 50 ms)
+    Euler. :data:`MOMENTUM_MPC_SETTINGS` is the long-horizon formulation (25 x 100 ms)
     to pair with ``MpcWeights(objective="momentum")`` (module docstring).
     ``attitude_states``: the OCP carries the attitude q (the paper's state); it
     must when the weights track the attitude, and need not otherwise
@@ -133,6 +139,9 @@ class MpcSettings:
     tension_min_n: float = 1.0  # [N] taut-tether margin (soft)
     radius_rate_scale: float = 1.0  # share of the actuator radius speeds the plan may use
     attitude_states: bool = True
+    # [s] the prediction step the weights are given for (None: per stage); see
+    # MpcWeights.per_stage
+    weights_step_s: float | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.horizon, int) and 2 <= self.horizon <= 1000):
@@ -145,14 +154,23 @@ class MpcSettings:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        step = self.weights_step_s
+        if step is not None and not (math.isfinite(step) and step > 0.0):
+            raise ValueError(f"weights_step_s must be None or finite and > 0, got {step!r}")
 
     @property
     def dt_ns(self) -> int:
         return round(self.dt_s * NS_PER_S)
 
+    @property
+    def weights_step_ratio(self) -> float:
+        """Prediction step over the step the weights are given for (1: per stage)."""
+        return 1.0 if self.weights_step_s is None else self.dt_s / self.weights_step_s
+
 
 PAPER_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.01, integrator="euler")
-MOMENTUM_MPC_SETTINGS = MpcSettings(horizon=50, dt_s=0.05, integrator="euler")
+# spin_stabilization's: 2.5 s in 25 RK4 steps, Table I's weights per 50 ms
+MOMENTUM_MPC_SETTINGS = MpcSettings(horizon=25, dt_s=0.1, integrator="rk4", weights_step_s=0.05)
 
 
 def settings_for_weights(settings: MpcSettings, weights: MpcWeights) -> MpcSettings:
@@ -280,6 +298,7 @@ class InertialMorphingMpc:
                 "weights q_q/q_tq track the attitude, but this MPC was built without it "
                 "(MpcSettings.attitude_states; see settings_for_weights)"
             )
+        weights = weights.per_stage(self.settings.weights_step_ratio)
         measured = np.asarray(state, dtype=float).reshape(N_MEASURED)
         x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
         z0, lam_g0, lam_z0 = self._warm_start(int(t_ns), x0)

@@ -53,7 +53,8 @@ hpipm exploit. ``x_0`` is fixed by equal bounds (state feedback).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -266,6 +267,32 @@ class MpcWeights:
             raise ValueError("MpcWeights.r must be > 0 (the control Hessian must be regular)")
         if self.objective not in OBJECTIVES:
             raise ValueError(f"MpcWeights.objective must be one of {OBJECTIVES}")
+
+    def per_stage(self, step_ratio: float) -> MpcWeights:
+        """The weights of a prediction step ``step_ratio`` times the one they are given for.
+
+        They keep one continuous-time cost on any grid. A running term weighs its
+        error over the whole step, so Q_w, Q_q, q_i and the tension slack grow with
+        the step. R weighs the per-step ``dI``: a rate held over the step costs
+        ``R~ (dI / dt)^2 dt = (R~ / dt) dI^2``, so R falls with the step. The
+        terminal weights Q_t and Q_tq are unchanged.
+        """
+        if not (math.isfinite(step_ratio) and step_ratio > 0.0):
+            raise ValueError(f"step_ratio must be finite and > 0, got {step_ratio!r}")
+        if step_ratio == 1.0:
+            return self
+
+        def scaled(values: tuple[float, ...], factor: float) -> tuple[float, float, float]:
+            return tuple(float(v) * factor for v in values)  # type: ignore[return-value]
+
+        return replace(
+            self,
+            q_w=scaled(self.q_w, step_ratio),
+            r=scaled(self.r, 1.0 / step_ratio),
+            q_q=self.q_q * step_ratio,
+            q_i=scaled(self.q_i, step_ratio),
+            tension_slack=self.tension_slack * step_ratio,
+        )
 
     @property
     def tracks_attitude(self) -> bool:
