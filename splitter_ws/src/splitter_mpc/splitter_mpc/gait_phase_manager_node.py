@@ -57,9 +57,9 @@ from splitter_msgs_py.conversions import (
     joint_state_from_msg,
     odom_from_msg,
     pose_to_msg,
+    principal_inertia_from_msg,
     stamp_from_msg,
     twist_to_msg,
-    vector3_from_msg,
     wrench_from_msg,
     wrench_to_msg,
 )
@@ -83,7 +83,6 @@ TICK_INPUTS = (
     names.INERTIA,
 )
 MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
-MAX_INERTIA_KG_M2 = 1.0e4  # [kg m^2] a measured moment above this is a corrupt message
 
 # The jump plan: float arrays that a params file may give as [] (read as "not set").
 PLAN_PARAMETERS = (
@@ -333,16 +332,7 @@ class GaitPhaseManagerNode(Node):
 
     def _on_inertia(self, msg: Vector3Stamped) -> None:
         try:
-            sample = vector3_from_msg(msg)
-            if sample.frame_id != names.BASE_FRAME:
-                raise MessageValidationError(
-                    f"header.frame_id: expected '{names.BASE_FRAME}', got '{sample.frame_id}'"
-                )
-            if min(sample.vector) <= 0.0 or max(sample.vector) > MAX_INERTIA_KG_M2:
-                raise MessageValidationError(
-                    f"vector: moments must be in (0, {MAX_INERTIA_KG_M2:g}] kg m^2, "
-                    f"got {sample.vector.tolist()}"
-                )
+            sample = principal_inertia_from_msg(msg)
         except MessageValidationError as exc:
             self._reject(names.INERTIA, msg.header.stamp, exc)
             return

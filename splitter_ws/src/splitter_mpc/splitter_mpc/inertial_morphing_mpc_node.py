@@ -40,8 +40,8 @@ from splitter_msgs_py.conversions import (
     diagnostics_to_msg,
     imu_from_msg,
     pose_from_msg,
+    principal_inertia_from_msg,
     twist_from_msg,
-    vector3_from_msg,
     vector3_to_msg,
 )
 from splitter_msgs_py.parameters import (
@@ -55,7 +55,6 @@ from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 from splitter_sim.core.model import RobotModel
 
 NODE_NAME = "inertial_morphing_mpc"
-MAX_INERTIA_KG_M2 = 1.0e4  # [kg m^2] a measured moment above this is a corrupt message
 MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates
 
 PARAMETERS = (
@@ -224,12 +223,7 @@ class InertialMorphingMpcNode(Node):
 
     def _on_inertia(self, msg: Vector3Stamped) -> None:
         try:
-            sample = vector3_from_msg(msg)
-            if np.any(sample.vector <= 0.0) or np.any(sample.vector > MAX_INERTIA_KG_M2):
-                raise MessageValidationError(
-                    f"vector: moments must be in (0, {MAX_INERTIA_KG_M2:g}] kg m^2, "
-                    f"got {sample.vector.tolist()}"
-                )
+            sample = principal_inertia_from_msg(msg)
         except MessageValidationError as exc:
             self._reject(names.INERTIA, exc)
             return

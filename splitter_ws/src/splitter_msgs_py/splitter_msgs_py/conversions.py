@@ -236,6 +236,24 @@ def vector3_from_msg(msg: Vector3Stamped) -> Vector3Sample:
     )
 
 
+MAX_PRINCIPAL_INERTIA_KG_M2 = 1.0e4  # [kg m^2] a measured moment above this is corrupt
+
+
+def principal_inertia_from_msg(msg: Vector3Stamped) -> Vector3Sample:
+    """Validated measured principal moments: frame ``base``, each in (0, 1e4] kg m^2."""
+    sample = vector3_from_msg(msg)
+    if sample.frame_id != names.BASE_FRAME:
+        raise MessageValidationError(
+            f"header.frame_id: expected '{names.BASE_FRAME}', got '{sample.frame_id}'"
+        )
+    if np.any(sample.vector <= 0.0) or np.any(sample.vector > MAX_PRINCIPAL_INERTIA_KG_M2):
+        raise MessageValidationError(
+            f"vector: moments must be in (0, {MAX_PRINCIPAL_INERTIA_KG_M2:g}] kg m^2, "
+            f"got {sample.vector.tolist()}"
+        )
+    return sample
+
+
 # --- joint states and commands -----------------------------------------------------------
 @dataclass(frozen=True)
 class JointSample:

@@ -121,6 +121,14 @@ def _vector3(value: ArrayLike, name: str) -> NDArray[np.float64]:
     return arr
 
 
+def _principal_inertia(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as 3 finite, positive principal moments [kg m^2]; ``ValueError`` if not."""
+    inertia = _vector3(value, name)
+    if np.any(inertia <= 0.0):
+        raise ValueError(f"{name}: moments must be > 0, got {inertia.tolist()}")
+    return inertia
+
+
 def _quaternion(value: ArrayLike, name: str) -> NDArray[np.float64]:
     """``value`` as a unit quaternion; ``ValueError`` when it is not finite and non-zero."""
     q = np.asarray(value, dtype=float).reshape(-1)
@@ -233,9 +241,7 @@ def momentum_aligned_attitude(
     given = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
     q = _quaternion(given, "orientation_wxyz")
     w = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
-    inertia = _vector3(principal_inertia_kg_m2, "principal_inertia_kg_m2")
-    if np.any(inertia <= 0.0):
-        raise ValueError(f"principal_inertia_kg_m2: moments must be > 0, got {inertia.tolist()}")
+    inertia = _principal_inertia(principal_inertia_kg_m2, "principal_inertia_kg_m2")
     w_ref = _vector3(w_ref_rad_s, "w_ref_rad_s")
     speed = float(np.linalg.norm(w_ref))  # [rad/s]
     rotation = rotation_matrix(q)
@@ -645,11 +651,7 @@ class GaitPhaseMachine:
             raise ValueError(f"contact_normal_force_n: expected 2 finite numbers, got {normal}")
         inertia = None
         if principal_inertia_kg_m2 is not None:
-            inertia = _vector3(principal_inertia_kg_m2, "principal_inertia_kg_m2")
-            if np.any(inertia <= 0.0):
-                raise ValueError(
-                    f"principal_inertia_kg_m2: moments must be > 0, got {inertia.tolist()}"
-                )
+            inertia = _principal_inertia(principal_inertia_kg_m2, "principal_inertia_kg_m2")
         elif self.config.attitude_reference == "momentum_aligned":
             raise ValueError(
                 "principal_inertia_kg_m2: required by attitude_reference 'momentum_aligned'"

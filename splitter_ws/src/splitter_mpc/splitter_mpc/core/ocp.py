@@ -126,33 +126,44 @@ def _euler_step(
     return momentum_next, q + 0.5 * dt_s * quat_multiply(q, ca.vertcat(0, w))
 
 
+_RK4_STAGES = (0.0, 0.5, 0.5, 1.0)  # [-] stage times as a share of the step
+
+
+def _rk4(x0: ca.SX, rate, dt_s: float) -> ca.SX:
+    """One classical RK4 step of ``dx/dt = rate(x, stage)`` (stage 0..3)."""
+    k1 = rate(x0, 0)
+    k2 = rate(x0 + 0.5 * dt_s * k1, 1)
+    k3 = rate(x0 + 0.5 * dt_s * k2, 2)
+    k4 = rate(x0 + dt_s * k3, 3)
+    return x0 + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
 def _rk4_step(
     x: ca.SX, u: ca.SX, dt_s: float, m: ca.DM, layout: StateLayout
 ) -> tuple[ca.SX, ca.SX | None]:
     """(h_{k+1}, q_{k+1}) by classical RK4 of ``dh/dt = -w x h``, ``dq/dt = q (x) [0, w] / 2``.
 
     ``w = h / I(tau)`` with the inertia moving linearly from I_k to I_{k+1} over the
-    step, as the setpoints played back at every control tick move it.
+    step, as the setpoints played back at every control tick move it. w at a stage
+    depends on h alone, so q is integrated after h with the stage rates of h's step.
     """
-    s_sq = x[layout.radii_sq]
-    q0 = x[layout.q] if layout.attitude else ca.SX.zeros(4)
-    inertia_0 = ca.mtimes(m, s_sq)
+    inertia_0 = ca.mtimes(m, x[layout.radii_sq])
     d_inertia = ca.mtimes(m, u[0:3])
-    h0 = inertia_0 * x[W]
+    stage_rates: list[ca.SX] = []
 
-    def rates(h: ca.SX, q: ca.SX, tau: float) -> tuple[ca.SX, ca.SX]:
-        w = h / (inertia_0 + tau * d_inertia)
-        q_rate = 0.5 * quat_multiply(q, ca.vertcat(0, w)) if layout.attitude else q
-        return -ca.cross(w, h), q_rate
+    def momentum_rate(h: ca.SX, stage: int) -> ca.SX:
+        w = h / (inertia_0 + _RK4_STAGES[stage] * d_inertia)
+        stage_rates.append(w)
+        return -ca.cross(w, h)
 
-    k1h, k1q = rates(h0, q0, 0.0)
-    k2h, k2q = rates(h0 + 0.5 * dt_s * k1h, q0 + 0.5 * dt_s * k1q, 0.5)
-    k3h, k3q = rates(h0 + 0.5 * dt_s * k2h, q0 + 0.5 * dt_s * k2q, 0.5)
-    k4h, k4q = rates(h0 + dt_s * k3h, q0 + dt_s * k3q, 1.0)
-    h1 = h0 + dt_s / 6.0 * (k1h + 2.0 * k2h + 2.0 * k3h + k4h)
+    h1 = _rk4(inertia_0 * x[W], momentum_rate, dt_s)
     if not layout.attitude:
         return h1, None
-    return h1, q0 + dt_s / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
+    return h1, _rk4(
+        x[layout.q],
+        lambda q, stage: 0.5 * quat_multiply(q, ca.vertcat(0, stage_rates[stage])),
+        dt_s,
+    )
 
 
 def discrete_dynamics(
