@@ -36,6 +36,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
@@ -58,6 +59,7 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import qos_for
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 NODE_NAME = "ik_tether_allocator"
@@ -392,11 +394,12 @@ class IkTetherAllocatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Spin until Ctrl-C or shutdown; an invalid parameter exits with 1 naming it."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = IkTetherAllocatorNode()
-        rclpy.spin(node)
+        spin_until_stopped(node, stop)
     except InvalidParameterError as exc:
         get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
         return 1

@@ -37,6 +37,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
@@ -71,6 +72,7 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "gait_phase_manager"
 DEFAULTS = GaitConfig()
@@ -482,11 +484,12 @@ class GaitPhaseManagerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = GaitPhaseManagerNode()
-        rclpy.spin(node)
+        spin_until_stopped(node, stop)
     except InvalidParameterError as exc:
         get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
         return 1

@@ -26,6 +26,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
@@ -52,6 +53,7 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 from splitter_sim.core.model import RobotModel
 
 NODE_NAME = "inertial_morphing_mpc"
@@ -342,11 +344,12 @@ class InertialMorphingMpcNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = InertialMorphingMpcNode()
-        rclpy.spin(node)
+        spin_until_stopped(node, stop)
     except InvalidParameterError as exc:
         get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
         return 1

@@ -23,6 +23,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
+from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py import names, qos
 from splitter_msgs_py.bag.metadata import read_metadata
@@ -36,6 +37,7 @@ from splitter_msgs_py.bag.ros_params import declare_topic_list
 from splitter_msgs_py.bag.ros_qos import publisher_qos
 from splitter_msgs_py.conversions import clock_to_msg, message_class
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "player"
 _NS_PER_S = 1_000_000_000
@@ -210,12 +212,12 @@ class PlayerNode(Node):
 
 def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | None = None) -> int:
     """Play until the end (or SIGINT / SIGTERM); the body of :func:`main`. 1 on a playback error."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = PlayerNode(parameter_overrides=parameter_overrides or [])
-        while rclpy.ok(context=node.context) and not node.finished.is_set():
-            rclpy.spin_once(node, timeout_sec=0.1)
+        spin_until_stopped(node, stop, finished=node.finished.is_set)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

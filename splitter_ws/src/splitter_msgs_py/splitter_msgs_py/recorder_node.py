@@ -29,6 +29,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py.bag import definitions
 from splitter_msgs_py.bag.playback import seconds_to_ns, select_topics
@@ -37,6 +38,7 @@ from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos,
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "recorder"
 
@@ -279,15 +281,12 @@ def make_executor(node: RecorderNode) -> Executor:
 
 def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | None = None) -> int:
     """Record until SIGINT / SIGTERM, then finish the bag; the body of :func:`main`."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = RecorderNode(parameter_overrides=parameter_overrides or [])
-        executor = make_executor(node)
-        # spin_once returns to Python regularly, so SIGINT / SIGTERM are handled
-        # (EventsExecutor.spin() does not return on them in rclpy 7.1.6).
-        while rclpy.ok(context=node.context):
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_stopped(node, stop, executor=make_executor(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

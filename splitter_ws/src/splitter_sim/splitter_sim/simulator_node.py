@@ -45,6 +45,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from scipy.spatial.transform import Rotation
@@ -75,6 +76,7 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import qos_for
+from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 from splitter_sim.core.model import RobotModel, gravity_from_name
 from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
 
@@ -793,11 +795,12 @@ def _markers(t_ns: int, state: SimState) -> MarkerArray:
 
 def main(args: list[str] | None = None) -> int:
     """Run until duration_s (if set), Ctrl-C or shutdown; an invalid parameter exits with 1."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = SimulatorNode()
-        rclpy.spin_until_future_complete(node, node.finished)
+        spin_until_stopped(node, stop, finished=node.finished.done)
     except InvalidParameterError as exc:
         get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
         return 1
