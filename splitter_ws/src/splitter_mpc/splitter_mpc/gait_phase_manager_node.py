@@ -4,11 +4,12 @@ A thin ROS layer over :class:`splitter_mpc.core.gait.GaitPhaseMachine`.
 
 Lockstep (docs/ARCHITECTURE.md, item 5): the node answers control tick ``t``
 (``t`` on the ``control_period_s`` grid) once it holds ``/splitter/odom``, both
-contact wrenches, ``/splitter/joint_states`` and ``/splitter/inertia`` stamped
-``t``; it publishes
-``/splitter/jump_command`` stamped ``t`` (a zero wrench when not thrusting) on
-every tick it answers. Waiting for all four inputs of the same tick makes the
-answer independent of the order in which DDS delivers them, so runs repeat.
+contact wrenches and ``/splitter/joint_states`` stamped ``t`` (and
+``/splitter/inertia`` with ``attitude_reference: momentum_aligned``, the one mode
+that needs it); it publishes ``/splitter/jump_command`` stamped ``t`` (a zero
+wrench when not thrusting) on every tick it answers. Waiting for all inputs of
+the same tick makes the answer independent of the order in which DDS delivers
+them, so runs repeat.
 
 An input that fails validation (NaN, non-unit quaternion, wrong frame, ...) is
 rejected with a throttled warning; its tick is still answered, from the last
@@ -16,10 +17,10 @@ good message of that topic, so lockstep never stalls on bad data.
 
 Subscribes: ``/splitter/odom``, ``/splitter/hemi_{a,b}/contact_wrench`` (stance:
 world-z force above ``stance_force_threshold_n``), ``/splitter/joint_states``
-(``r_x`` = tether joint / 2), ``/splitter/inertia`` (the measured principal
-moments: with the odom's body rate, the angular momentum that
-``attitude_reference: momentum_aligned`` aligns the reference with; the very
-numbers the MPC and the recorded run see).
+(``r_x`` = tether joint / 2), ``/splitter/inertia`` in mode ``momentum_aligned``
+only (the measured principal moments: with the odom's body rate, the angular
+momentum that mode aligns the reference with; the very numbers the MPC and the
+recorded run see).
 Publishes: ``/splitter/jump_command`` (every tick), ``/splitter/gait_phase``,
 ``/splitter/attitude_reference`` and ``/splitter/attitude_reference_pose``
 (latched, on change), ``/diagnostics`` (every ``diagnostics_period_s`` of
@@ -77,13 +78,8 @@ from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 NODE_NAME = "gait_phase_manager"
 DEFAULTS = GaitConfig()
 TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
-TICK_INPUTS = (
-    names.ODOM,
-    names.CONTACT_WRENCH_A,
-    names.CONTACT_WRENCH_B,
-    names.JOINT_STATES,
-    names.INERTIA,
-)
+TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
+# and /splitter/inertia when the attitude reference needs it (GaitConfig.needs_principal_inertia)
 MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
 
 # The jump plan: float arrays that a params file may give as [] (read as "not set").
@@ -232,6 +228,9 @@ class GaitPhaseManagerNode(Node):
             raise
         self._control_period_ns, self._diagnostics_period_ns = periods
         self._machine = GaitPhaseMachine(config)
+        self._tick_inputs = TICK_INPUTS + (
+            (names.INERTIA,) if config.needs_principal_inertia else ()
+        )
         self._pending: dict[int, dict[str, object | None]] = {}
         self._last_good: dict[str, object] = {}
         self._last_tick_ns: int | None = None
@@ -261,9 +260,10 @@ class GaitPhaseManagerNode(Node):
         self.create_subscription(
             JointState, names.JOINT_STATES, self._on_joint_states, qos_for(names.JOINT_STATES)
         )
-        self.create_subscription(
-            Vector3Stamped, names.INERTIA, self._on_inertia, qos_for(names.INERTIA)
-        )
+        if config.needs_principal_inertia:
+            self.create_subscription(
+                Vector3Stamped, names.INERTIA, self._on_inertia, qos_for(names.INERTIA)
+            )
         self.get_logger().info(
             f"{len(config.jumps)} jump(s) planned at "
             f"{[j.time_ns / 1e9 for j in config.jumps]} s; attitude reference "
@@ -366,7 +366,7 @@ class GaitPhaseManagerNode(Node):
                 f"(had {sorted(self._pending[oldest])})"
             )
             del self._pending[oldest]
-        if all(name in inputs for name in TICK_INPUTS):
+        if all(name in inputs for name in self._tick_inputs):
             for stale in [t for t in self._pending if t <= t_ns]:
                 if stale != t_ns:
                     inputs_stale = sorted(self._pending[stale])
@@ -384,12 +384,14 @@ class GaitPhaseManagerNode(Node):
         if any(sample is None for sample in inputs.values()):
             self._stale_ticks += 1
         # A rejected input (None) is replaced by the last good message of its topic.
-        odom, contact_a, contact_b, joints, inertia = (
-            inputs[topic] if inputs[topic] is not None else self._last_good.get(topic)
-            for topic in TICK_INPUTS
-        )
+        samples = {
+            topic: inputs[topic] if inputs[topic] is not None else self._last_good.get(topic)
+            for topic in self._tick_inputs
+        }
+        odom, contact_a, contact_b, joints = (samples[topic] for topic in TICK_INPUTS)
+        inertia = samples.get(names.INERTIA)
         output = None
-        if any(sample is None for sample in (odom, contact_a, contact_b, joints, inertia)):
+        if any(sample is None for sample in samples.values()):
             warn_throttled(
                 self, "no_good_input", f"tick {t_ns * 1e-9:.3f} s: no good input yet; zero thrust"
             )
@@ -403,7 +405,7 @@ class GaitPhaseManagerNode(Node):
                     odom.angular_velocity_rad_s,
                     0.5 * float(joints.position[TETHER_INDEX]),
                     (float(contact_a.force_n[2]), float(contact_b.force_n[2])),
-                    inertia.vector,
+                    None if inertia is None else inertia.vector,
                 )
             except ValueError as exc:
                 self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: gait update failed: {exc}")

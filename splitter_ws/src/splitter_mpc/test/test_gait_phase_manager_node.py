@@ -245,23 +245,41 @@ def test_phase_and_references_are_latched_for_late_joiners(graph, ros_context) -
         late.destroy_node()
 
 
-def test_a_tick_waits_for_all_its_inputs(graph) -> None:
-    _manager, sim, executor = graph
-    joints = np.zeros(names.N_JOINTS)
-    joints[names.JOINT_INDEX[names.TETHER_JOINT]] = TETHER_M
-    sim.odom.publish(odom_to_msg(0, (0, 0, 0.45), Q_BODY, (0, 0, 0), (0, 0, 0)))
-    sim.joints.publish(joint_state_to_msg(0, joints))
-    sim.contacts[0].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
-    for _ in range(30):
-        executor.spin_once(timeout_sec=0.005)
-    assert sim.jump_commands == []  # hemi b's contact wrench and the inertia are missing
-    sim.contacts[1].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
-    for _ in range(30):
-        executor.spin_once(timeout_sec=0.005)
-    assert sim.jump_commands == []  # the inertia for t = 0 is missing
-    sim.inertia.publish(vector3_to_msg(0, INERTIA_KG_M2, names.BASE_FRAME))
-    spin_until(executor, lambda: len(sim.jump_commands) == 1)
-    assert stamp_from_msg(sim.jump_commands[0].header.stamp) == 0
+@pytest.mark.parametrize(
+    ("attitude_reference", "needs_inertia"),
+    [("integrate_w_ref", False), ("initial", False), ("momentum_aligned", True)],
+)
+def test_a_tick_waits_for_all_its_inputs(
+    ros_context, attitude_reference: str, needs_inertia: bool
+) -> None:
+    """Odom, both contacts and joints always; /splitter/inertia only when the mode needs it."""
+    overrides = [*PLAN, Parameter("attitude_reference", value=attitude_reference)]
+    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
+    sim = FakeSimulator(ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(manager)
+    executor.add_node(sim.node)
+    try:
+        joints = np.zeros(names.N_JOINTS)
+        joints[names.JOINT_INDEX[names.TETHER_JOINT]] = TETHER_M
+        sim.odom.publish(odom_to_msg(0, (0, 0, 0.45), Q_BODY, (0, 0, 0), (0, 0, 0)))
+        sim.joints.publish(joint_state_to_msg(0, joints))
+        sim.contacts[0].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
+        for _ in range(30):
+            executor.spin_once(timeout_sec=0.005)
+        assert sim.jump_commands == []  # hemi b's contact wrench is missing
+        sim.contacts[1].publish(wrench_to_msg(0, (0, 0, 20.0), (0, 0, 0), names.WORLD_FRAME))
+        if needs_inertia:
+            for _ in range(30):
+                executor.spin_once(timeout_sec=0.005)
+            assert sim.jump_commands == []  # the inertia for t = 0 is missing
+            sim.inertia.publish(vector3_to_msg(0, INERTIA_KG_M2, names.BASE_FRAME))
+        spin_until(executor, lambda: len(sim.jump_commands) == 1)
+        assert stamp_from_msg(sim.jump_commands[0].header.stamp) == 0
+    finally:
+        executor.shutdown()
+        manager.destroy_node()
+        sim.node.destroy_node()
 
 
 def test_momentum_aligned_pose_and_a_bad_inertia_message(ros_context) -> None:

@@ -482,6 +482,11 @@ class GaitConfig:
                 f"got {self.attitude_reference!r}"
             )
 
+    @property
+    def needs_principal_inertia(self) -> bool:
+        """Whether :meth:`GaitPhaseMachine.update` needs the measured principal moments."""
+        return self.attitude_reference == "momentum_aligned"
+
 
 def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
     """The machine's configuration from the node's parameters (seconds, flat jump arrays).
