@@ -73,6 +73,25 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
             load_scenario(bad)
 
 
+def test_findings_are_comparisons_between_variants(tmp_path) -> None:
+    findings = load_scenario("orientation_tracking").findings
+    assert [(f.metric, f.expectation) for f in findings[:2]] == [
+        ("inertia_range_kg_m2", "quaternion_tracking > velocity_only"),
+        ("w_tracking_rms_rad_s", "velocity_only < quaternion_tracking"),
+    ]
+    bad = tmp_path / "bad.yaml"
+    head = "duration_s: 1\nvariants: {a: {}, b: {}}\nfindings:\n"
+    for item, message in (
+        ("  - {statement: s, metric: m, expect: a >= b}", "expect"),
+        ("  - {statement: s, metric: m, expect: a > c}", "no variant 'c'"),
+        ("  - {statement: s, expect: a > b}", "keys statement, metric, expect"),
+        ("  statement: s", "a list"),
+    ):
+        bad.write_text(head + item + "\n")
+        with pytest.raises(ScenarioError, match=message):
+            load_scenario(bad)
+
+
 def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
     from splitter_bringup.commands.build_mpc import formulations
 

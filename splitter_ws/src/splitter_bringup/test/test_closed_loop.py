@@ -122,6 +122,8 @@ def test_quaternion_tracking_needs_a_wider_inertia_range(orientation) -> None:
     quaternion, q_metrics, _ = orientation["quaternion_tracking"]
     velocity, v_metrics, _ = orientation["velocity_only"]
     assert q_metrics["radii_range_m"] > 2.0 * v_metrics["radii_range_m"]
+    # the scenario's finding 1, measured on the principal moments: 60 vs 22 kg m^2
+    assert q_metrics["inertia_range_kg_m2"] > 2.0 * v_metrics["inertia_range_kg_m2"]
     for series in (quaternion, velocity):
         assert np.all(np.isfinite(series.angular_velocity_rad_s))
         h = np.linalg.norm(series.extras["angular_momentum_world"], axis=1)
@@ -153,7 +155,7 @@ def test_quaternion_tracking_reduces_the_final_attitude_error(orientation) -> No
 
     With quaternion tracking the MPC turns body y 135 deg onto +H and then holds the
     spin phase through Iyy: the reference spins at |w_ref| = 1 rad/s, which only
-    Iyy = |H| / |w_ref| gives. Measured (8 s): 1.6 deg in the last 0.5 s, the tail of a
+    Iyy = |H| / |w_ref| gives. Measured (8 s): 1.9 deg in the last 0.5 s, the tail of a
     nutation that peaks near 12 deg at 5 s and decays (0.3 deg by 12 s); 5 deg leaves
     3x margin. Without it Table II weighs w_y lightly (Q_w,y = 10, Q_t,y = 1), and the
     MPC settles about the nearer pole, -y (45 deg from the initial momentum): body y ends
@@ -171,6 +173,16 @@ def test_quaternion_tracking_reduces_the_final_attitude_error(orientation) -> No
     momentum = np.linalg.norm(series.extras["angular_momentum_world"][0])
     iyy = np.mean(series.principal_inertia_kg_m2[final, 1])
     assert iyy == pytest.approx(momentum / 1.0, rel=0.02)  # |H| / |w_ref|
+
+
+def test_angular_velocity_is_tracked_better_with_quaternion_tracking_here(orientation) -> None:
+    """The paper's finding 2 (velocity tracked better *without* quaternion tracking) is not
+    reproduced: without J_q the MPC settles about -y, the pole nearer the initial momentum
+    (Table II weighs w_y lightly), so |w - w_ref| stays >= 1 rad/s; with J_q the reference
+    pulls body y onto +H and w reaches w_ref (RMS over 8 s: 0.83 vs 1.55 rad/s)."""
+    _, q_metrics, _ = orientation["quaternion_tracking"]
+    _, v_metrics, _ = orientation["velocity_only"]
+    assert v_metrics["w_tracking_rms_rad_s"] > 1.5 * q_metrics["w_tracking_rms_rad_s"]
 
 
 def test_solver_failures_mid_run_are_survived() -> None:

@@ -42,3 +42,23 @@ def test_run_rejects_an_unknown_variant(tmp_path, capsys) -> None:
     code = splitter(["run", str(scenario), "--out", str(tmp_path), "--variant", "nope"])
     assert code == 2
     assert "variant 'nope'" in capsys.readouterr().err
+
+
+def test_run_checks_the_papers_findings_on_the_variants_it_ran(tmp_path, capsys) -> None:
+    data = yaml.safe_load((scenario_dir() / "orientation_tracking.yaml").read_text())
+    data["duration_s"] = 0.2
+    scenario = tmp_path / "short_orientation.yaml"
+    scenario.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    args = ["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile", "--no-plots"]
+    assert splitter([*args, "--variant", "quaternion_tracking", "--variant", "velocity_only"]) == 0
+    findings = json.loads((out / "summary.json").read_text())["findings"]
+    assert len(findings) == len(data["findings"])
+    ran, not_ran = findings[0], findings[2]  # this project's formulation / the paper's
+    assert ran["metric"] == "inertia_range_kg_m2"
+    assert set(ran["values"]) == {"quaternion_tracking", "velocity_only"}
+    q, v = ran["values"]["quaternion_tracking"], ran["values"]["velocity_only"]
+    assert ran["reproduced"] == (q > v)
+    assert not_ran["reproduced"] is None and not_ran["values"] == {}
+    printed = capsys.readouterr().out
+    assert "the paper's findings" in printed and "not run" in printed

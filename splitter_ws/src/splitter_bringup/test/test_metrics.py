@@ -9,11 +9,15 @@ import pytest
 
 from splitter_bringup.core.metrics import (
     SETTLING_BAND,
+    Metric,
     attitude_error_rad,
     attitude_reference_series,
+    evaluate_findings,
     flight_summary,
     step_response,
+    w_tracking_rms,
 )
+from splitter_bringup.core.scenario import PaperFinding
 from splitter_bringup.core.series import RunSeries
 from splitter_mpc.core.gait import (
     GaitConfig,
@@ -102,3 +106,43 @@ def test_momentum_aligned_error_is_measured_against_the_gait_machines_reference(
     np.testing.assert_allclose(
         refs[0], momentum_aligned_attitude(q0, w[0], inertia, w_ref), atol=1e-15
     )
+
+
+def test_w_tracking_rms_of_a_constant_and_of_a_ramp_error() -> None:
+    t = np.linspace(0.0, 4.0, 4001)
+    constant = np.tile([0.3, 1.0 + 0.4, 0.0], (len(t), 1))  # |w - w_ref| = 0.5
+    assert w_tracking_rms(t, constant, (0.0, 1.0, 0.0)) == pytest.approx(0.5, rel=1e-12)
+    ramp = np.zeros((len(t), 3))
+    ramp[:, 2] = 0.25 * t  # e = a t on [0, T]: RMS = a T / sqrt(3)
+    assert w_tracking_rms(t, ramp, (0.0, 0.0, 0.0)) == pytest.approx(1.0 / math.sqrt(3), rel=1e-6)
+    # time weighted: a coarse second half does not change the value
+    uneven = np.concatenate([np.linspace(0.0, 2.0, 2001), np.linspace(2.5, 4.0, 4)])
+    ramp_uneven = np.zeros((len(uneven), 3))
+    ramp_uneven[:, 2] = 0.25 * uneven
+    assert w_tracking_rms(uneven, ramp_uneven, (0, 0, 0)) == pytest.approx(
+        1.0 / math.sqrt(3), rel=0.01
+    )
+
+
+def test_inertia_range_is_the_largest_range_of_a_principal_moment() -> None:
+    t = np.linspace(0.0, 1.0, 11)
+    run = series(t, np.zeros((len(t), 3)))
+    run.principal_inertia_kg_m2[:, 1] = np.linspace(141.36, 163.0, len(t))
+    run.principal_inertia_kg_m2[:, 2] = np.linspace(141.36, 131.36, len(t))
+    assert flight_summary(run)["inertia_range_kg_m2"].value == pytest.approx(163.0 - 141.36)
+
+
+def test_findings_compare_a_metric_between_two_variants() -> None:
+    def metric(value: float) -> dict[str, Metric]:
+        return {"inertia_range_kg_m2": Metric(value, "kg m^2", "")}
+
+    wider = PaperFinding("wider", "inertia_range_kg_m2", "q", ">", "v")
+    narrower = PaperFinding("narrower", "inertia_range_kg_m2", "q", "<", "v")
+    results = evaluate_findings([wider, narrower], {"q": metric(60.0), "v": metric(21.6)})
+    assert [r.reproduced for r in results] == [True, False]
+    assert results[0].values == {"q": 60.0, "v": 21.6}
+    assert evaluate_findings([wider], {"q": metric(60.0)})[0].reproduced is None
+    with pytest.raises(KeyError, match="no_such"):
+        evaluate_findings(
+            [PaperFinding("x", "no_such", "q", ">", "v")], {"q": metric(1), "v": metric(2)}
+        )

@@ -107,7 +107,7 @@ def _jsonable(value):
 
 def main(args: argparse.Namespace) -> int:
     """Run, summarise, plot; 0 on success, 2 on a bad scenario or variant."""
-    from splitter_bringup.core.metrics import summary_table
+    from splitter_bringup.core.metrics import Metric, evaluate_findings, summary_table
 
     try:
         base = load_scenario(args.scenario)
@@ -126,6 +126,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"{base.name}: variants {', '.join(variants)} ({backend})", file=sys.stderr)
     runs: dict[str, RunSeries] = {}
     summaries: dict[str, dict] = {}
+    all_metrics: dict[str, dict[str, Metric]] = {}
     for variant in variants:
         started = time.monotonic()
         scenario = load_scenario(args.scenario, variant)
@@ -134,6 +135,7 @@ def main(args: argparse.Namespace) -> int:
         runs[variant] = series
         series.save_npz(out / f"{variant}.npz")
         metrics = _metrics(series, scenario)
+        all_metrics[variant] = metrics
         summaries[variant] = {
             "wall_time_s": wall,
             "controller_enabled": scenario.controller.enabled,
@@ -160,19 +162,26 @@ def main(args: argparse.Namespace) -> int:
 
         plot_comparison(runs, out / "comparison.png", base.name)
     main_variant = variants[0]
+    findings = evaluate_findings(base.findings, all_metrics)
     summary = {
         "scenario": base.name,
         "backend": backend,
         "main_variant": main_variant,
         "metrics": summaries[main_variant]["metrics"],
         "variants": summaries,
+        "findings": [f.as_dict() for f in findings],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     for variant in variants:
-        metrics = _metrics(runs[variant], load_scenario(args.scenario, variant))
         print(f"\n{base.name} / {variant}")
         print(f"  {'metric':<26}{'value':>12}  {'unit':<9}paper")
-        for name, value, unit, paper in summary_table(metrics):
+        for name, value, unit, paper in summary_table(all_metrics[variant]):
             print(f"  {name:<26}{value:>12}  {unit:<9}{paper}")
+    if findings:
+        print(f"\n{base.name}: the paper's findings")
+        for f in findings:
+            verdict = {True: "reproduced", False: "NOT reproduced", None: "not run"}[f.reproduced]
+            values = ", ".join(f"{v} {x:.4g}" for v, x in f.values.items())
+            print(f"  {verdict:<15} {f.statement}\n  {'':<15} {f.metric}: {values}")
     print(f"\nwrote {out / 'summary.json'}")
     return 0

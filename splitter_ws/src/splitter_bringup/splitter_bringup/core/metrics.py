@@ -17,6 +17,11 @@ or a bag of the node graph). Definitions (stated, since the paper does not):
 * ``wy_from_momentum``: ``|H| / Iyy`` at the end. With the angular momentum
   conserved in flight and the final spin about y, ``w_y = |H| / Iyy`` exactly:
   the final spin rate is set by the final inertia, not by the reference.
+* ``w_tracking_rms_rad_s``: RMS over the whole run of ``|w - w_ref|`` (time
+  weighted), how well the angular velocity reference is tracked;
+  ``inertia_range_kg_m2``: the largest range (max - min) of Ixx, Iyy, Izz, how
+  much morphing a run used. The paper's findings on orientation tracking compare
+  these two between variants (:func:`evaluate_findings`).
 
 Attitude error: the angle between the attitude and the reference the MPC was
 given, q and -q counted as one attitude. The gait machine makes that reference
@@ -32,13 +37,14 @@ along the world angular momentum (reachable in torque-free flight).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_bringup.core.scenario import PaperFinding
 from splitter_bringup.core.series import RunSeries
 from splitter_mpc.core.gait import attitude_reference_at_stamp, propagate_attitude
 from splitter_sim.core.model import STANDARD_GRAVITY
@@ -209,11 +215,66 @@ def flight_summary(
         "radii_range_m": Metric(
             float(np.max(np.ptp(series.radii_m, axis=0))), "m", "largest range of r_x, r_y, r_z"
         ),
+        "inertia_range_kg_m2": Metric(
+            float(np.max(np.ptp(series.principal_inertia_kg_m2, axis=0))),
+            "kg m^2",
+            "largest range of Ixx, Iyy, Izz",
+        ),
+        "w_tracking_rms_rad_s": Metric(
+            w_tracking_rms(series.t_s, w, w_ref_rad_s),
+            "rad/s",
+            "RMS of |w - w_ref| over the run",
+        ),
     }
-    for key in ("finding_1", "finding_2"):
-        if key in paper:
-            out[key] = Metric(math.nan, "-", "qualitative finding of the paper", paper[key])
     return out
+
+
+def w_tracking_rms(t_s: ArrayLike, w_rad_s: ArrayLike, w_ref_rad_s: ArrayLike) -> float:
+    """Time-weighted (trapezoidal) RMS of ``|w - w_ref|`` [rad/s] over ``t_s``."""
+    t = np.asarray(t_s, dtype=float)
+    error_sq = np.sum((np.asarray(w_rad_s, dtype=float) - np.asarray(w_ref_rad_s)) ** 2, axis=1)
+    if t.size < 2 or t[-1] <= t[0]:
+        return float(np.sqrt(error_sq[0])) if error_sq.size else math.nan
+    return float(np.sqrt(np.trapezoid(error_sq, t) / (t[-1] - t[0])))
+
+
+@dataclass(frozen=True)
+class FindingResult:
+    """A paper finding checked on this project's runs (``reproduced`` None: a variant not run)."""
+
+    statement: str
+    metric: str
+    expectation: str
+    values: dict[str, float]
+    reproduced: bool | None
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def evaluate_findings(
+    findings: Sequence[PaperFinding], metrics_by_variant: Mapping[str, Mapping[str, Metric]]
+) -> list[FindingResult]:
+    """Each finding's comparison on the variants that ran; ``KeyError`` names a missing metric."""
+    results = []
+    for finding in findings:
+        values: dict[str, float] = {}
+        for variant in (finding.variant, finding.other):
+            if variant in metrics_by_variant:
+                metrics = metrics_by_variant[variant]
+                if finding.metric not in metrics:
+                    raise KeyError(f"finding {finding.statement!r}: no metric {finding.metric!r}")
+                values[variant] = metrics[finding.metric].value
+        reproduced = None
+        if len(values) == 2:
+            left, right = values[finding.variant], values[finding.other]
+            reproduced = bool(left > right if finding.relation == ">" else left < right)
+        results.append(
+            FindingResult(
+                finding.statement, finding.metric, finding.expectation, values, reproduced
+            )
+        )
+    return results
 
 
 def summary_table(metrics: Mapping[str, Metric]) -> list[tuple[str, str, str, str]]:

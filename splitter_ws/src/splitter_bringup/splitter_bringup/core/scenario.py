@@ -3,7 +3,9 @@
 ROS-free. A scenario is a YAML file in ``splitter_bringup/scenarios`` (or any
 path). ``variants`` maps a variant name to overrides deep-merged over the base;
 the first variant is the main one (the one a plain ``splitter run`` reports
-against the paper).
+against the paper). ``paper`` holds the paper's numbers; ``findings`` its
+qualitative findings, each a comparison of one metric between two variants
+(:class:`PaperFinding`), which ``splitter run`` checks on the variants it ran.
 """
 
 from __future__ import annotations
@@ -76,6 +78,28 @@ class ControllerSpec:
 
 
 @dataclass(frozen=True)
+class PaperFinding:
+    """A qualitative finding of the paper as a comparison of one metric between two variants.
+
+    ``expect: A > B`` (or ``<``) in the scenario's ``findings`` list: the finding is
+    reproduced when metric(A) > metric(B) on this project's runs.
+    """
+
+    statement: str
+    metric: str
+    variant: str
+    relation: str  # ">" or "<"
+    other: str
+
+    @property
+    def expectation(self) -> str:
+        return f"{self.variant} {self.relation} {self.other}"
+
+
+FINDING_RELATIONS = (">", "<")
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A complete run description."""
 
@@ -95,6 +119,7 @@ class Scenario:
     ground_contact: bool
     paper: Mapping[str, Any] = field(default_factory=dict)
     variants: tuple[str, ...] = ()
+    findings: tuple[PaperFinding, ...] = ()
     raw: Mapping[str, Any] = field(default_factory=dict)
 
 
@@ -145,6 +170,31 @@ def _horizon(data: Mapping[str, Any]) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 1000:
         raise ScenarioError(f"horizon: expected an integer in [2, 1000], got {value!r}")
     return value
+
+
+def _findings(data: Any, variants: tuple[str, ...]) -> tuple[PaperFinding, ...]:
+    if data is None:
+        return ()
+    if not isinstance(data, list):
+        raise ScenarioError("findings: expected a list of {statement, metric, expect}")
+    out = []
+    for i, item in enumerate(data):
+        where = f"findings[{i}]"
+        if not isinstance(item, Mapping) or set(item) != {"statement", "metric", "expect"}:
+            raise ScenarioError(f"{where}: expected exactly the keys statement, metric, expect")
+        words = str(item["expect"]).split()
+        if len(words) != 3 or words[1] not in FINDING_RELATIONS:
+            raise ScenarioError(
+                f"{where}.expect: expected 'VARIANT > VARIANT' or 'VARIANT < VARIANT', "
+                f"got {item['expect']!r}"
+            )
+        for name in (words[0], words[2]):
+            if name not in variants:
+                raise ScenarioError(f"{where}.expect: no variant {name!r} in {list(variants)}")
+        out.append(
+            PaperFinding(str(item["statement"]), str(item["metric"]), words[0], words[1], words[2])
+        )
+    return tuple(out)
 
 
 def load_scenario(name_or_path: str | Path, variant: str | None = None) -> Scenario:
@@ -232,5 +282,6 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         ground_contact=bool(d.get("ground_contact", False)),
         paper=dict(d.get("paper", {}) or {}),
         variants=variants,
+        findings=_findings(d.get("findings"), variants),
         raw=d,
     )
