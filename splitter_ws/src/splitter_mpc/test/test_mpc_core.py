@@ -18,7 +18,7 @@ from splitter_mpc.core.limits import (
 )
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function
-from splitter_mpc.core.solvers import SolverOptions
+from splitter_mpc.core.solvers import OBJECTIVE_SCALE_MIN, SolverOptions
 from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
@@ -316,3 +316,41 @@ def test_weights_per_stage_keep_one_continuous_time_cost() -> None:
     assert MpcSettings(dt_s=0.1).weights_step_ratio == 1.0
     with pytest.raises(ValueError, match="weights_step_s"):
         MpcSettings(weights_step_s=-0.05)
+
+
+def scaled_weights(weights: MpcWeights, factor: float) -> MpcWeights:
+    return replace(
+        weights,
+        q_w=tuple(factor * v for v in weights.q_w),
+        r=tuple(factor * v for v in weights.r),
+        q_t=tuple(factor * v for v in weights.q_t),
+        tension_slack=factor * weights.tension_slack,
+    )
+
+
+def test_objective_scaling_makes_a_solve_independent_of_the_weights_scale(mpc) -> None:
+    """c J has the optimum of J; scaled as IPOPT does (largest gradient at the warm start to
+    100), both are one scaled problem, so fatrop takes the same steps (it has no scaling of
+    its own: unscaled, a 8x heavier cost changes its barrier path and stopping test)."""
+    x = np.concatenate([W0, IDENTITY, I0])
+    q_ref = np.tile(IDENTITY, (51, 1))
+    plans = []
+    for factor in (1.0, 8.0):
+        mpc.reset()
+        weights = scaled_weights(MpcWeights(), factor)
+        gradient_scale = mpc.backend.objective_scale(mpc.problem(0, x, [0, 1, 0], q_ref, weights))
+        assert gradient_scale < 1.0  # Table I's gradient is ~500: scaled down to 100
+        plans.append(mpc.solve(0, x, [0, 1, 0], q_ref, weights))
+    one, eight = plans
+    assert one.result.converged and eight.result.converged
+    assert one.result.iterations == eight.result.iterations
+    np.testing.assert_allclose(eight.result.cost, 8.0 * one.result.cost, rtol=1e-9)
+    np.testing.assert_allclose(eight.inertia, one.inertia, rtol=1e-9, atol=1e-9)
+
+
+def test_a_wild_start_is_not_scaled_below_ipopts_minimum(mpc) -> None:
+    mpc.reset()
+    x = np.concatenate([W0, IDENTITY, I0])
+    weights = scaled_weights(MpcWeights(), 2.0**40)  # gradient ~5e14
+    data = mpc.problem(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), weights)
+    assert mpc.backend.objective_scale(data) == OBJECTIVE_SCALE_MIN

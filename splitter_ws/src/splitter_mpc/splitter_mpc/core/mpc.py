@@ -293,6 +293,40 @@ class InertialMorphingMpc:
         executing it. The warm start is updated by usable solutions (and by every
         finite sqp/rti iterate).
         """
+        data = self.problem(
+            t_ns,
+            state,
+            w_ref_rad_s,
+            q_ref_wxyz,
+            weights,
+            nominal_inertia_kg_m2=nominal_inertia_kg_m2,
+        )
+        result = self.backend.solve(data)
+        xs, _ = self.ocp.split(result.z)
+        layout = self.ocp.state
+        if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
+            self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
+        return MpcPlan(
+            t_ns=int(t_ns),
+            dt_ns=self.settings.dt_ns,
+            angular_velocity=xs[:, layout.w],
+            orientation=xs[:, layout.q] if layout.attitude else None,
+            inertia=self.ocp.inertia_of(xs),
+            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq], 0.0)),
+            result=result,
+        )
+
+    def problem(
+        self,
+        t_ns: int,
+        state: ArrayLike,
+        w_ref_rad_s: ArrayLike,
+        q_ref_wxyz: ArrayLike,
+        weights: MpcWeights,
+        *,
+        nominal_inertia_kg_m2: ArrayLike | None = None,
+    ) -> ProblemInstance:
+        """The NLP :meth:`solve` hands to the back-end: warm start, bounds, parameters."""
         if weights.tracks_attitude and not self.settings.attitude_states:
             raise ValueError(
                 "weights q_q/q_tq track the attitude, but this MPC was built without it "
@@ -306,7 +340,7 @@ class InertialMorphingMpc:
         lbg, ubg = self.ocp.constraint_bounds(x0)
         momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
         axis, _ = momentum_target(w_ref_rad_s, momentum_norm)
-        data = ProblemInstance(
+        return ProblemInstance(
             z0=z0,
             lam_g0=lam_g0,
             lam_z0=lam_z0,
@@ -323,18 +357,4 @@ class InertialMorphingMpc:
             ubz=ubz,
             lbg=lbg,
             ubg=ubg,
-        )
-        result = self.backend.solve(data)
-        xs, _ = self.ocp.split(result.z)
-        layout = self.ocp.state
-        if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
-            self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
-        return MpcPlan(
-            t_ns=int(t_ns),
-            dt_ns=self.settings.dt_ns,
-            angular_velocity=xs[:, layout.w],
-            orientation=xs[:, layout.q] if layout.attitude else None,
-            inertia=self.ocp.inertia_of(xs),
-            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq], 0.0)),
-            result=result,
         )

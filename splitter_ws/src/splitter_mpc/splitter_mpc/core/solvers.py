@@ -15,8 +15,9 @@
 * ``rti``: the real-time iteration, ``sqp`` capped at one iteration per re-plan.
 
 For ``ipopt`` and ``fatrop`` the objective is scaled as IPOPT's gradient-based
-scaling does (``nlp_scaling_max_gradient``): by ``min(1, g_max / |grad f(z_0)|_inf)``
-at the warm start, a parameter of the compiled problem, so the tolerances
+scaling does (``nlp_scaling_max_gradient``, ``nlp_scaling_min_value``): by
+``min(1, max(1e-8, g_max / |grad f(z_0)|_inf))`` at the warm start, a parameter of
+the compiled problem, so the tolerances
 mean the same whatever the weights. fatrop has no scaling of its own; with
 Table I's weights the gradient is ~500 and unscaled solves of the first,
 hardest re-plans took up to 62 iterations, scaled ones ~35 (``splitter bench mpc``).
@@ -47,6 +48,7 @@ _LOG = logging.getLogger(__name__)
 SOLVERS = ("fatrop", "ipopt", "sqp", "rti")
 _GN_REGULARISATION = 1e-8  # added to the Gauss-Newton Hessian (states without a cost)
 OBJECTIVE_GRADIENT_MAX = 100.0  # IPOPT's nlp_scaling_max_gradient
+OBJECTIVE_SCALE_MIN = 1e-8  # IPOPT's nlp_scaling_min_value: a wild start is not scaled to 0
 
 
 # [s] wall-time cap of a solve in lockstep and library runs: there the simulator waits
@@ -195,7 +197,9 @@ class NlpBackend:
         largest = float(np.max(np.abs(gradient), initial=0.0))
         if not math.isfinite(largest):
             return 1.0  # the solver reports the non-finite start itself
-        return min(1.0, OBJECTIVE_GRADIENT_MAX / largest) if largest > 0.0 else 1.0
+        if largest <= OBJECTIVE_GRADIENT_MAX:
+            return 1.0
+        return max(OBJECTIVE_SCALE_MIN, OBJECTIVE_GRADIENT_MAX / largest)
 
     def solve(self, data: ProblemInstance) -> SolverResult:
         started = time.perf_counter()
