@@ -12,8 +12,11 @@ graph tests then start their MPC node without a compile inside their time limits
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from splitter_bringup.core.scenario import Scenario, available_scenarios, load_scenario
 
@@ -25,6 +28,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--solver", default="fatrop", help="MPC solver to build (the node's default: fatrop)"
     )
+    parser.add_argument(
+        "--jobs",
+        type=_jobs,
+        default=0,
+        help="formulations built at once (default 0: one per CPU core)",
+    )
+
+
+def _jobs(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
 
 
 def formulations(names: list[str]) -> dict[tuple[int, float, str, bool], Scenario]:
@@ -42,25 +58,43 @@ def formulations(names: list[str]) -> dict[tuple[int, float, str, bool], Scenari
     return found
 
 
-def main(args: argparse.Namespace) -> int:
+def build(scenario: Scenario, solver: str) -> float:
+    """Build (compile or load from the cache) the ``solver`` MPC a scenario flies; seconds taken."""
     from dataclasses import replace
 
     from splitter_bringup.core.closed_loop import controller_config
     from splitter_mpc.core.mpc import InertialMorphingMpc
     from splitter_sim.core.model import RobotModel
 
-    model = RobotModel()
-    for scenario in formulations(list(args.scenarios) or available_scenarios()).values():
-        settings = replace(controller_config(scenario).mpc, solver=args.solver)
-        print(
-            f"building the {args.solver} MPC of {scenario.name}/{scenario.variant} "
-            f"(N = {settings.horizon}, dt = {settings.dt_s} s, {settings.integrator}, "
-            f"attitude states: {settings.attitude_states}); "
-            "a first build compiles (1-2 min) ...",
-            file=sys.stderr,
-            flush=True,
-        )
-        started = time.monotonic()
-        InertialMorphingMpc(model, settings)
-        print(f"  ready in {time.monotonic() - started:.1f} s", file=sys.stderr, flush=True)
+    settings = replace(controller_config(scenario).mpc, solver=solver)
+    started = time.monotonic()
+    InertialMorphingMpc(RobotModel(), settings)
+    return time.monotonic() - started
+
+
+def main(args: argparse.Namespace) -> int:
+    from splitter_bringup.core.closed_loop import controller_config
+
+    found = formulations(list(args.scenarios) or available_scenarios())
+    jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(found)))
+    print(
+        f"building {len(found)} {args.solver} MPC formulation(s), {jobs} at a time; "
+        "a first build compiles (1-2 min each) ...",
+        file=sys.stderr,
+        flush=True,
+    )
+    # One process per build: gcc is single-threaded, and the cache writes are atomic.
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        futures = {pool.submit(build, s, args.solver): s for s in found.values()}
+        for done, future in enumerate(as_completed(futures), start=1):
+            scenario = futures[future]
+            settings = controller_config(scenario).mpc
+            print(
+                f"  [{done}/{len(found)}] {scenario.name}/{scenario.variant} "
+                f"(N = {settings.horizon}, dt = {settings.dt_s} s, {settings.integrator}, "
+                f"attitude states: {settings.attitude_states}) ready in {future.result():.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
     return 0
