@@ -50,7 +50,7 @@ def test_run_checks_the_papers_findings_on_the_variants_it_ran(tmp_path, capsys)
     scenario = tmp_path / "short_orientation.yaml"
     scenario.write_text(yaml.safe_dump(data))
     out = tmp_path / "out"
-    args = ["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile", "--no-plots"]
+    args = ["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile"]
     assert splitter([*args, "--variant", "quaternion_tracking", "--variant", "velocity_only"]) == 0
     findings = json.loads((out / "summary.json").read_text())["findings"]
     assert len(findings) == len(data["findings"])
@@ -62,3 +62,4 @@ def test_run_checks_the_papers_findings_on_the_variants_it_ran(tmp_path, capsys)
     assert not_ran["reproduced"] is None and not_ran["values"] == {}
     printed = capsys.readouterr().out
     assert "the paper's findings" in printed and "not run" in printed
+    assert (out / "findings.png").stat().st_size > 10_000

@@ -7,7 +7,9 @@ built once) and once with the project's controller. Printed: the median, 99th
 percentile and largest solve time of each, the median speed-up, and the largest
 difference between the two closed-loop angular-velocity trajectories (the two
 solve the same problem, so it measures solver agreement, not tuning).
-Progress goes to stderr; ``--json`` prints one JSON object on stdout.
+Progress goes to stderr; ``--json`` prints one JSON object on stdout; ``--plot
+PNG`` draws each re-plan's solve time (with the p99 goal, 10 % of the re-plan
+period), its iterations, and the difference between the two closed loops.
 """
 
 from __future__ import annotations
@@ -16,8 +18,11 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+P99_GOAL_FRACTION = 0.1  # [-] of the re-plan period: issue 4's p99 solve-time goal
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=None, help="shorter run [s]")
     parser.add_argument(
         "--no-compile", action="store_true", help="project's solver without compiled code"
+    )
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="PNG",
+        help="also plot solve times, iterations and the w difference per re-plan",
     )
 
 
@@ -55,8 +67,9 @@ def run_benchmark(
     scenario_name: str = "spin_stabilization",
     duration_s: float | None = None,
     compile_code: bool = True,
+    plot_path: Path | None = None,
 ) -> dict:
-    """Fly the scenario with both controllers; the figures as a dictionary."""
+    """Fly the scenario with both controllers; the figures as a dictionary (and a PNG)."""
     from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
     from splitter_bringup.core.scenario import load_scenario
     from splitter_mpc.core.baseline import OptiBaselineMpc
@@ -85,6 +98,13 @@ def run_benchmark(
             scenario, _progress(label), model=model, controller=controller, duration_s=duration_s
         )
     base, mine = runs["baseline"], runs[solver]
+    if plot_path is not None:
+        from splitter_bringup.core.plots import plot_solve_times
+
+        budget_ms = P99_GOAL_FRACTION * config.replan_period_ns / 1e6
+        title = f"{scenario_name}: Opti + IPOPT baseline vs {solver}"
+        plot_solve_times(runs, plot_path, budget_ms, title)
+        print(f"wrote {plot_path}", file=sys.stderr)
     base_ms, mine_ms = _solve_times_ms(base), _solve_times_ms(mine)
     diff = np.abs(base.angular_velocity_rad_s - mine.angular_velocity_rad_s)
     ok = np.asarray(mine.extras["mpc_solve_ok"], dtype=float)
@@ -108,7 +128,9 @@ def run_benchmark(
 
 def main(args: argparse.Namespace) -> int:
     """Run the benchmark; print the figures."""
-    result = run_benchmark(args.solver, args.scenario, args.duration, not args.no_compile)
+    result = run_benchmark(
+        args.solver, args.scenario, args.duration, not args.no_compile, args.plot
+    )
     if args.json:
         print(json.dumps(result, indent=2))
     else:

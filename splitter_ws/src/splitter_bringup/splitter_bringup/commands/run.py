@@ -157,12 +157,14 @@ def main(args: argparse.Namespace) -> int:
                 plot_trajectory(
                     series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
                 )
+    findings = evaluate_findings(base.findings, all_metrics)
     if not args.no_plots and len(runs) > 1:
-        from splitter_bringup.core.plots import plot_comparison
+        from splitter_bringup.core.plots import plot_comparison, plot_findings
 
         plot_comparison(runs, out / "comparison.png", base.name)
+        if any(f.reproduced is not None for f in findings):
+            plot_findings(findings, out / "findings.png", f"{base.name}: the paper's findings")
     main_variant = variants[0]
-    findings = evaluate_findings(base.findings, all_metrics)
     summary = {
         "scenario": base.name,
         "backend": backend,

@@ -3,12 +3,15 @@
 Plotting only: every number shown is computed by :mod:`.metrics` or read from
 the series. Figures (paper Fig. 7 and 10-12): angular velocity, radii and
 control effort (inertia and its setpoint), Euler angles, and the quaternion map
-(the components of the attitude quaternion over time).
+(the components of the attitude quaternion over time); beside them the paper's
+findings as checked (:func:`plot_findings`) and the solve times of the MPC
+benchmark (:func:`plot_solve_times`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import textwrap
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -18,6 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import NDArray
 
+from splitter_bringup.core.metrics import FindingResult
 from splitter_bringup.core.series import RunSeries
 
 AXES = ("x", "y", "z")
@@ -132,6 +136,67 @@ def plot_comparison(runs: Mapping[str, RunSeries], path: Path, title: str = "") 
         ax.set_xlabel("t [s]")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_solve_times(
+    runs: Mapping[str, RunSeries], path: Path, budget_ms: float | None = None, title: str = ""
+) -> Path:
+    """Solve time and iterations of each re-plan, and |w| differences, of several controllers.
+
+    ``runs`` maps a controller's name to its closed loop (``extras`` ``mpc_solve_time_ms``
+    and ``mpc_iterations``, NaN between re-plans); ``budget_ms`` draws the time goal.
+    The third panel is each run's largest |w_i| difference to the first run.
+    """
+    fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+    reference = next(iter(runs.values()))
+    for label, series in runs.items():
+        times = np.asarray(series.extras["mpc_solve_time_ms"], dtype=float)
+        iterations = np.asarray(series.extras["mpc_iterations"], dtype=float)
+        replans = np.isfinite(times)
+        axes[0].semilogy(series.t_s[replans], times[replans], ".-", label=label)
+        axes[1].plot(series.t_s[replans], iterations[replans], ".-", label=label)
+        if series is not reference:
+            diff = np.max(
+                np.abs(series.angular_velocity_rad_s - reference.angular_velocity_rad_s), 1
+            )
+            axes[2].semilogy(series.t_s, np.maximum(diff, 1e-12), label=label)
+    if budget_ms is not None:
+        axes[0].axhline(budget_ms, color="k", linestyle="--", linewidth=1, label="goal (p99)")
+    axes[0].set_ylabel("solve time [ms]")
+    axes[1].set_ylabel("iterations")
+    first = next(iter(runs))
+    axes[2].set_ylabel(f"max$_i$ |$\\omega_i$ - $\\omega_i$({first})| [rad/s]")
+    axes[2].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3, which="both")
+        ax.legend(loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_findings(findings: Sequence[FindingResult], path: Path, title: str = "") -> Path:
+    """One panel per checked finding: its metric on the two variants compared."""
+    checked = [f for f in findings if f.reproduced is not None]
+    fig, axes = plt.subplots(1, max(len(checked), 1), figsize=(4.5 * max(len(checked), 1), 4.2))
+    axes = np.atleast_1d(axes)
+    for ax, finding in zip(axes, checked, strict=False):
+        names = list(finding.values)
+        ax.bar(range(len(names)), [finding.values[n] for n in names], color=["C0", "C1"])
+        ax.set_xticks(range(len(names)), [n.replace("_", "\n") for n in names], fontsize=8)
+        ax.set_ylabel(finding.metric)
+        verdict = "reproduced" if finding.reproduced else "NOT reproduced"
+        ax.set_title(f"{textwrap.fill(finding.statement, 42)}\n({verdict})", fontsize=8)
+        ax.grid(True, axis="y", alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,27 @@
+"""``splitter bench mpc`` on a short flight: both closed loops agree and the figures are there.
+
+Timing is not asserted here (speed goals are met by the benchmark command itself).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from splitter_mpc.bench import run_benchmark
+
+pytestmark = pytest.mark.slow
+
+
+def test_short_benchmark_reports_agreeing_closed_loops_and_plots(tmp_path) -> None:
+    plot = tmp_path / "solve_times.png"
+    result = run_benchmark(duration_s=0.3, compile_code=False, plot_path=plot)
+    assert result["n_solves"] == 3  # re-plans at 0, 0.1 and 0.2 s
+    assert result["failed_solves"] == 0
+    # the same problem solved two ways: the closed loops agree (issue 4: <= 0.01 rad/s)
+    assert result["max_abs_w_diff"] <= 0.01
+    for key in ("baseline_median_ms", "median_ms", "p99_ms", "max_ms", "speedup_median"):
+        assert math.isfinite(result[key]) and result[key] > 0.0
+    assert result["median_ms"] <= result["p99_ms"] <= result["max_ms"]
+    assert plot.stat().st_size > 10_000
