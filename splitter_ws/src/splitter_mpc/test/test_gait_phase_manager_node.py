@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -148,9 +149,10 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
         executor.spin_once(timeout_sec=0.01)
 
 
-@pytest.fixture
-def graph(ros_context):
-    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=PLAN)
+@contextmanager
+def gait_graph(ros_context, overrides=PLAN):
+    """The gait manager (``overrides``), a scripted simulator and one executor for both."""
+    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
     sim = FakeSimulator(ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(manager)
@@ -161,6 +163,12 @@ def graph(ros_context):
         executor.shutdown()
         manager.destroy_node()
         sim.node.destroy_node()
+
+
+@pytest.fixture
+def graph(ros_context):
+    with gait_graph(ros_context) as nodes:
+        yield nodes
 
 
 def run_ticks(sim: FakeSimulator, executor, ticks_ms, bad_odom_at_ms: int | None = None) -> None:
@@ -254,12 +262,7 @@ def test_a_tick_waits_for_all_its_inputs(
 ) -> None:
     """Odom, both contacts and joints always; /splitter/inertia only when the mode needs it."""
     overrides = [*PLAN, Parameter("attitude_reference", value=attitude_reference)]
-    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
-    sim = FakeSimulator(ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(manager)
-    executor.add_node(sim.node)
-    try:
+    with gait_graph(ros_context, overrides) as (_manager, sim, executor):
         joints = np.zeros(names.N_JOINTS)
         joints[names.JOINT_INDEX[names.TETHER_JOINT]] = TETHER_M
         sim.odom.publish(odom_to_msg(0, (0, 0, 0.45), Q_BODY, (0, 0, 0), (0, 0, 0)))
@@ -276,23 +279,14 @@ def test_a_tick_waits_for_all_its_inputs(
             sim.inertia.publish(vector3_to_msg(0, INERTIA_KG_M2, names.BASE_FRAME))
         spin_until(executor, lambda: len(sim.jump_commands) == 1)
         assert stamp_from_msg(sim.jump_commands[0].header.stamp) == 0
-    finally:
-        executor.shutdown()
-        manager.destroy_node()
-        sim.node.destroy_node()
 
 
 def test_momentum_aligned_pose_and_a_bad_inertia_message(ros_context) -> None:
     """The published pose is the core's momentum-aligned attitude of the first tick's state;
     a corrupt /splitter/inertia is rejected, its tick answered from the last good one."""
     overrides = [*PLAN, Parameter("attitude_reference", value="momentum_aligned")]
-    manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
-    sim = FakeSimulator(ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(manager)
-    executor.add_node(sim.node)
-    rate = (0.5, -0.5, 0.5)  # [rad/s] body: I w is 135 deg from +y
-    try:
+    with gait_graph(ros_context, overrides) as (_manager, sim, executor):
+        rate = (0.5, -0.5, 0.5)  # [rad/s] body: I w is 135 deg from +y
         for t_ms in range(0, 110, 10):
             t_ns = t_ms * MS
             odom = odom_to_msg(t_ns, (0.0, 0.0, 0.45), Q_BODY, (0, 0, 0), rate)
@@ -320,10 +314,6 @@ def test_momentum_aligned_pose_and_a_bad_inertia_message(ros_context) -> None:
         assert stamp_from_msg(sim.diagnostics[-1].header.stamp) == 100 * MS
         assert last.values["rejected_messages"] == 1.0  # the 20 ms inertia ...
         assert last.values["ticks_with_rejected_input"] == 1.0  # ... its tick still answered
-    finally:
-        executor.shutdown()
-        manager.destroy_node()
-        sim.node.destroy_node()
 
 
 @pytest.mark.parametrize(

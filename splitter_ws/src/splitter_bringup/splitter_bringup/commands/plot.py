@@ -55,6 +55,8 @@ def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from splitter_bringup.core.plots import save_figure
+
     t = series.t_s
     p = series.position_m
     v = series.velocity_m_s
@@ -106,12 +108,7 @@ def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
                 )
     ax.set_xlabel("t [s]")
     ax.grid(True, alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def main(args: argparse.Namespace) -> int:

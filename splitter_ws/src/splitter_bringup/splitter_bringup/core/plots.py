@@ -19,12 +19,23 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from splitter_bringup.core.metrics import FindingResult
 from splitter_bringup.core.series import RunSeries
 
 AXES = ("x", "y", "z")
+
+
+def save_figure(fig: Figure, path: Path, title: str = "") -> Path:
+    """Title, lay out and write ``fig`` as a PNG at ``path`` (folders made), then close it."""
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def euler_xyz_deg(q_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -87,12 +98,7 @@ def plot_flight(series: RunSeries, path: Path, title: str = "") -> Path:
     ax.set_xlabel("t [s]")
     ax.legend(loc="best", fontsize="small")
     ax.grid(True, alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def plot_quaternion_map(series: RunSeries, path: Path, title: str = "") -> Path:
@@ -116,12 +122,7 @@ def plot_quaternion_map(series: RunSeries, path: Path, title: str = "") -> Path:
     ax.set_aspect("equal")
     ax.grid(True, alpha=0.3)
     fig.colorbar(sc, ax=ax, label="t [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def plot_comparison(runs: Mapping[str, RunSeries], path: Path, title: str = "") -> Path:
@@ -136,12 +137,7 @@ def plot_comparison(runs: Mapping[str, RunSeries], path: Path, title: str = "") 
         ax.set_xlabel("t [s]")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="best")
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def plot_solve_times(
@@ -176,12 +172,7 @@ def plot_solve_times(
     for ax in axes:
         ax.grid(True, alpha=0.3, which="both")
         ax.legend(loc="best")
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def plot_findings(findings: Sequence[FindingResult], path: Path, title: str = "") -> Path:
@@ -197,9 +188,4 @@ def plot_findings(findings: Sequence[FindingResult], path: Path, title: str = ""
         verdict = "reproduced" if finding.reproduced else "NOT reproduced"
         ax.set_title(f"{textwrap.fill(finding.statement, 42)}\n({verdict})", fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
