@@ -24,7 +24,12 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 # ephemeral port range, and above 232 Fast DDS calls exit(1): "port number is too
 # high"). Tests that need a second domain add at most MAX_DOMAIN_OFFSET to this one.
 MAX_DOMAIN_OFFSET = 20
-TEST_DOMAIN_ID = 1 + os.getpid() % (101 - MAX_DOMAIN_OFFSET)
+# SPLITTER_TEST_DOMAIN_ID pins it (in [1, 81]) for suites that run side by side on one machine.
+TEST_DOMAIN_ID = int(
+    os.environ.get("SPLITTER_TEST_DOMAIN_ID", 1 + os.getpid() % (101 - MAX_DOMAIN_OFFSET))
+)
+if not 1 <= TEST_DOMAIN_ID <= 101 - MAX_DOMAIN_OFFSET:
+    raise ValueError(f"SPLITTER_TEST_DOMAIN_ID must be in [1, 81], got {TEST_DOMAIN_ID}")
 apply_ros_environment(domain_id=TEST_DOMAIN_ID)
 os.environ.setdefault("MPLBACKEND", "Agg")
 
