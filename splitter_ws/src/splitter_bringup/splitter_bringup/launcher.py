@@ -2,7 +2,8 @@
 
 The simulator is started last: in lockstep it waits until the controllers and
 the recorder are connected, then runs the scenario and exits at its end; the
-launcher then stops every other node (the recorder closes its bag on SIGINT).
+launcher then stops every other node, the recorder last (it takes what the others
+published until they exited, then closes its bag).
 A node that dies makes the launch fail with a non-zero exit code; Ctrl-C or
 SIGTERM stop every child cleanly.
 """
@@ -85,6 +86,7 @@ def launch(
                     node_argv(node.entry, params, ["-r", f"__node:={node.name}"]),
                     env,
                     ends_run=node.name == "simulator",
+                    stops_last=node.name == "recorder",
                 )
             )
         outcome, code = supervisor.wait(timeout_s=timeout_s)

@@ -38,7 +38,7 @@ from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos,
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_msgs_py.signals import StopRequest, drain, spin_until_stopped
 
 NODE_NAME = "recorder"
 
@@ -286,7 +286,13 @@ def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | No
     node = None
     try:
         node = RecorderNode(parameter_overrides=parameter_overrides or [])
-        spin_until_stopped(node, stop, executor=make_executor(node))
+        executor = make_executor(node)
+        spin_until_stopped(node, stop, executor=executor)
+        if node.context.ok():
+            # The launcher stops the recorder after the other nodes: take what they sent last.
+            recorder = node
+            late = drain(executor, lambda: sum(recorder.writer.message_counts.values()))
+            node.get_logger().info(f"drained {late} messages still queued at the stop")
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

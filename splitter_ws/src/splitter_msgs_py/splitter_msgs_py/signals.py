@@ -24,14 +24,21 @@ handler runs in the main thread between bytecodes and only sets a flag), and
 from __future__ import annotations
 
 import signal
+import time
 from collections.abc import Callable
 from types import FrameType
 
+from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 SPIN_PERIOD_S = 0.1  # [s] longest wait for work before the stop flag is checked again
+FLUSH_TIMEOUT_S = 2.0  # [s] longest wait for subscribers to acknowledge the last messages
+DRAIN_QUIET_S = 0.2  # [s] a drain ends after this long without a new message
+DRAIN_LIMIT_S = 5.0  # [s] and at the latest after this long
+INTERNAL_TOPICS = ("/parameter_events", "/rosout")  # rclpy's own, not the graph's data
 
 
 class StopRequest:
@@ -81,3 +88,55 @@ def spin_until_stopped(
         executor.spin_once(timeout_sec=SPIN_PERIOD_S)
     if stop.requested:
         node.get_logger().info(f"{stop.signal_name}: stopping")
+    flush_publishers(node)
+
+
+def flush_publishers(node: Node, timeout_s: float = FLUSH_TIMEOUT_S) -> bool:
+    """Wait until every matched reliable subscriber acknowledged the node's publications.
+
+    A node that exits right after publishing (the simulator's last state at the end of a
+    scenario) would otherwise take unacknowledged messages with it. Bounded by
+    ``timeout_s`` in all; False (and a warning naming the topics) when it ran out.
+    """
+    if not node.context.ok():
+        return False
+    deadline = time.monotonic() + timeout_s
+    unacked = []
+    for publisher in node.publishers:
+        if (
+            publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE
+            or publisher.topic_name in INTERNAL_TOPICS
+        ):
+            continue
+        remaining = max(0.0, deadline - time.monotonic())
+        if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
+            unacked.append(publisher.topic_name)
+    if unacked:
+        node.get_logger().warning(
+            f"stopping with unacknowledged messages on {', '.join(unacked)} after {timeout_s:g} s"
+        )
+    return not unacked
+
+
+def drain(
+    executor: Executor,
+    received: Callable[[], int],
+    *,
+    quiet_s: float = DRAIN_QUIET_S,
+    limit_s: float = DRAIN_LIMIT_S,
+) -> int:
+    """Execute callbacks until ``received()`` stops growing for ``quiet_s`` (or ``limit_s``).
+
+    A recorder stopped after the publishers has their last messages in its queues:
+    this takes them before the bag is closed. Returns how many arrived while draining.
+    """
+    start = time.monotonic()
+    first = last = received()
+    quiet_since = start
+    while time.monotonic() - start < limit_s and time.monotonic() - quiet_since < quiet_s:
+        executor.spin_once(timeout_sec=min(SPIN_PERIOD_S, quiet_s))
+        count = received()
+        if count != last:
+            last = count
+            quiet_since = time.monotonic()
+    return last - first

@@ -15,9 +15,10 @@ import pytest
 
 from splitter_msgs_py.environment import ros_environment
 
-# argv: signal name, then "project" (StopRequest + spin_until_stopped), "rclpy"
-# (rclpy's own handlers and rclpy.spin, the control) or "twice" (two signals in one
-# callback). Prints how spinning ended and how many messages arrived.
+# argv: signal name, then "project" (StopRequest + spin_until_stopped) or "twice" (two
+# signals in one callback). Prints how spinning ended and how many messages arrived.
+# (How rclpy's own handler ends such a node is a race inside rclpy, which no test here
+# asserts: it failed fresh-clone runs either way.)
 BUSY_NODE = """
 import os, signal, sys, time
 import rclpy
@@ -28,8 +29,8 @@ from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 signum = signal.Signals[sys.argv[1]]
 mode = sys.argv[2]
-stop = None if mode == "rclpy" else StopRequest()
-rclpy.init(signal_handler_options=None if stop is None else SignalHandlerOptions.NO)
+stop = StopRequest()
+rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
 node = rclpy.create_node("signal_probe")
 received = []
 publisher = node.create_publisher(String, "signal_probe", 10)
@@ -47,10 +48,7 @@ def send_signal():
 
 node.create_timer(0.3, send_signal)
 try:
-    if stop is None:
-        rclpy.spin(node)
-    else:
-        spin_until_stopped(node, stop)
+    spin_until_stopped(node, stop)
     print("stopped", len(received) > 0)
 except ExternalShutdownException:
     print("external shutdown", len(received) > 0)
@@ -79,14 +77,6 @@ def test_a_stop_signal_ends_spinning_between_callbacks(signal_name: str) -> None
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "stopped True", result.stdout + result.stderr
     assert f"{signal_name}: stopping" in result.stderr
-
-
-def test_rclpy_alone_turns_sigint_into_keyboard_interrupt() -> None:
-    """The control: rclpy's handler chains SIGINT to Python's asynchronous KeyboardInterrupt."""
-    result = run_busy_node("SIGINT", "rclpy")
-    assert "keyboard interrupt" in result.stdout or "KeyboardInterrupt" in result.stderr, (
-        result.stdout + result.stderr
-    )
 
 
 def test_a_second_signal_interrupts_a_stuck_callback() -> None:

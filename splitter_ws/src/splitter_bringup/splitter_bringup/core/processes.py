@@ -31,6 +31,9 @@ class ProcessSpec:
     env: Mapping[str, str]
     # A process whose exit ends the run normally (the simulator at the end of the scenario).
     ends_run: bool = False
+    # Stopped only after every other child has exited (the recorder: it takes the last
+    # messages the others sent before they stopped).
+    stops_last: bool = False
 
 
 def node_argv(entry: str, params_file: Path | None, extra_ros_args: Sequence[str] = ()) -> tuple:
@@ -129,28 +132,36 @@ class Supervisor:
             time.sleep(poll_s)
 
     def stop_all(self, grace_s: float = 10.0) -> dict[str, int | None]:
-        """Stop every child (reverse start order): SIGINT, then SIGTERM, then SIGKILL.
+        """Stop every child: SIGINT, then SIGTERM, then SIGKILL.
 
-        Returns each child's exit code.
+        Children with ``stops_last`` are stopped only once all the others have exited, so a
+        recorder receives everything they published until their end. Returns each child's
+        exit code.
         """
-        for child in reversed(self.children):
+        first = [c for c in reversed(self.children) if not c.spec.stops_last]
+        last = [c for c in reversed(self.children) if c.spec.stops_last]
+        for group in (first, last):
+            self._stop_group(group, grace_s)
+        for child in self.children:
+            child.reader.join(timeout=2.0)
+        return {c.spec.name: c.popen.returncode for c in self.children}
+
+    def _stop_group(self, children: list[RunningProcess], grace_s: float) -> None:
+        for child in children:
             self._signal(child, signal.SIGINT)
-        self._wait_children(grace_s)
-        for child in reversed(self.children):
+        self._wait_children(grace_s, children)
+        for child in children:
             if child.popen.poll() is None:
                 LOG.warning(
                     "%s did not stop on SIGINT within %.0f s: SIGTERM", child.spec.name, grace_s
                 )
                 self._signal(child, signal.SIGTERM)
-        self._wait_children(grace_s / 2)
-        for child in self.children:
+        self._wait_children(grace_s / 2, children)
+        for child in children:
             if child.popen.poll() is None:
                 LOG.error("%s did not stop on SIGTERM: SIGKILL", child.spec.name)
                 self._signal(child, signal.SIGKILL)
                 child.popen.wait()
-        for child in self.children:
-            child.reader.join(timeout=2.0)
-        return {c.spec.name: c.popen.returncode for c in self.children}
 
     def stop_one(self, name: str, grace_s: float = 10.0) -> int | None:
         """Stop one child with SIGINT (SIGKILL after ``grace_s``); its exit code."""
@@ -164,9 +175,11 @@ class Supervisor:
                     return child.popen.wait()
         raise KeyError(name)
 
-    def _wait_children(self, timeout_s: float) -> None:
+    def _wait_children(
+        self, timeout_s: float, children: list[RunningProcess] | None = None
+    ) -> None:
         deadline = time.monotonic() + timeout_s
-        for child in self.children:
+        for child in self.children if children is None else children:
             remaining = max(0.0, deadline - time.monotonic())
             try:
                 child.popen.wait(timeout=remaining)
