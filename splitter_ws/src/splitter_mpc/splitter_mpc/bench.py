@@ -93,10 +93,15 @@ def run_benchmark(
     print("building the Opti + IPOPT baseline ...", file=sys.stderr)
     baseline = MorphingController(model, config, OptiBaselineMpc(model, config.mpc))
     runs = {}
-    for label, controller in (("baseline", baseline), (solver, ours)):
-        runs[label] = run_closed_loop(
-            scenario, _progress(label), model=model, controller=controller, duration_s=duration_s
-        )
+    with ours:  # the solver worker stops with the runs
+        for label, controller in (("baseline", baseline), (solver, ours)):
+            runs[label] = run_closed_loop(
+                scenario,
+                _progress(label),
+                model=model,
+                controller=controller,
+                duration_s=duration_s,
+            )
     base, mine = runs["baseline"], runs[solver]
     if plot_path is not None:
         from splitter_bringup.core.plots import plot_solve_times

@@ -100,7 +100,25 @@ PARAMETERS = (
     ParameterSpec("control_period_s", 0.01, "setpoint period [s]", 0.001, 1.0),
     ParameterSpec("solver", "fatrop", "optimisation back-end", choices=SOLVERS),
     ParameterSpec("max_iter", 30, "iteration cap per solve", 1, 10000),
-    ParameterSpec("max_solve_time_s", 0.08, "wall-time cap per solve [s]", 1e-3, 60.0),
+    ParameterSpec(
+        "max_solve_time_s",
+        0.08,
+        "wall-time deadline per solve [s]; a missed one executes the previous plan",
+        1e-3,
+        60.0,
+    ),
+    ParameterSpec(
+        "isolated_solver",
+        True,
+        "solve in a worker process killed at the deadline (the only bound that holds when "
+        "a native solve freezes); false solves in the node's process",
+    ),
+    ParameterSpec(
+        "wait_for_solver_start",
+        True,
+        "after a missed deadline, wait for the restarted worker outside the deadline "
+        "(lockstep, deterministic); false counts its start against the deadline (real time)",
+    ),
     ParameterSpec("tolerance", 1e-6, "solver tolerance (scaled problem)", 1e-14, 1e-2),
     ParameterSpec("compile", True, "compile the derivative code with gcc (cached on disk)"),
     ParameterSpec(
@@ -123,6 +141,8 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
             max_iter=int(values["max_iter"]),
             max_time_s=float(values["max_solve_time_s"]),
             tol=float(values["tolerance"]),
+            isolated=bool(values["isolated_solver"]),
+            wait_for_worker_start=bool(values["wait_for_solver_start"]),
             compile=bool(values["compile"]),
             cache_dir=Path(values["cache_dir"]).expanduser() if values["cache_dir"] else None,
         )
@@ -159,7 +179,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
 class InertialMorphingMpcNode(Node):
     """Answers each control tick's imu + inertia with an inertia setpoint."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, stop: StopRequest | None = None, **kwargs) -> None:
         overrides = list(kwargs.pop("parameter_overrides", None) or [])
         if not any(p.name == "use_sim_time" for p in overrides):
             overrides.append(Parameter("use_sim_time", value=True))
@@ -175,6 +195,9 @@ class InertialMorphingMpcNode(Node):
             f"dt = {config.mpc.dt_s} s); the first start compiles and caches its code"
         )
         self.controller = MorphingController(RobotModel(), config)
+        if stop is not None and hasattr(self.controller.mpc.backend, "abandon"):
+            # a stop signal ends a solve being waited for (the worker is killed)
+            self.controller.mpc.backend.abandon = lambda: stop.requested
         self._control_ns = config.control_period_ns
         self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
         self._imu: dict[int, object] = {}
@@ -205,6 +228,13 @@ class InertialMorphingMpcNode(Node):
         )
         self.create_subscription(String, names.GAIT_PHASE, self._on_phase, LATCHED_QOS)
         self.get_logger().info("ready")
+
+    def destroy_node(self) -> None:
+        """Stop the solver worker with the node."""
+        controller = getattr(self, "controller", None)
+        if controller is not None:
+            controller.close()
+        super().destroy_node()
 
     # --- inputs --------------------------------------------------------------------------
     def _reject(self, topic: str, exc: Exception) -> None:
@@ -326,6 +356,7 @@ class InertialMorphingMpcNode(Node):
             "plan_age_s": s.plan_age_s,
             "solves": s.solves,
             "failures": s.failures,
+            "deadline_misses": s.deadline_misses,
             "consecutive_failures": s.consecutive_failures,
             "setpoint_ixx_kg_m2": s.setpoint_kg_m2[0],
             "setpoint_iyy_kg_m2": s.setpoint_kg_m2[1],
@@ -348,7 +379,7 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
-        node = InertialMorphingMpcNode()
+        node = InertialMorphingMpcNode(stop=stop)
         spin_until_stopped(node, stop)
     except InvalidParameterError as exc:
         get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")

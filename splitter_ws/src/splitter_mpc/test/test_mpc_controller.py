@@ -134,12 +134,16 @@ def test_config_rejects_inconsistent_periods() -> None:
         ControllerConfig(nominal_inertia_kg_m2=(1.0, -1.0, 1.0))
 
 
-def test_a_late_solve_is_not_executed() -> None:
-    late_mpc = InertialMorphingMpc(
-        MODEL, MpcSettings(options=SolverOptions(compile=False, max_time_s=1e-6))
-    )
-    ctl = MorphingController(MODEL, ControllerConfig(), late_mpc)
-    ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
-    np.testing.assert_allclose(tick(ctl, 0), I0)  # no plan: hold the measured inertia
-    assert ctl.status.solve_status.startswith("late") and not ctl.status.solve_ok
+@pytest.mark.parametrize(
+    ("isolated", "status", "misses"), [(False, "late", 0), (True, "deadline_missed", 1)]
+)
+def test_a_late_solve_is_not_executed(isolated: bool, status: str, misses: int) -> None:
+    options = SolverOptions(compile=False, max_time_s=1e-6, isolated=isolated)
+    with InertialMorphingMpc(MODEL, MpcSettings(options=options)) as late_mpc:
+        ctl = MorphingController(MODEL, ControllerConfig(), late_mpc)
+        ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
+        np.testing.assert_allclose(tick(ctl, 0), I0)  # no plan: hold the measured inertia
+    # in this process the solve ends and is found late; isolated, it is abandoned
+    assert ctl.status.solve_status.startswith(status) and not ctl.status.solve_ok
     assert ctl.plan is None and ctl.status.failures == 1
+    assert ctl.status.deadline_misses == misses

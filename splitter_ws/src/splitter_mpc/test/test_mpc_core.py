@@ -32,12 +32,9 @@ NX = StateLayout(attitude=True).nx  # [w, q, s]
 
 @pytest.fixture(scope="module")
 def mpc() -> InertialMorphingMpc:
-    return InertialMorphingMpc(
-        MODEL,
-        MpcSettings(
-            dt_s=0.05, integrator="rk4", options=SolverOptions(compile=False, max_time_s=10.0)
-        ),
-    )
+    # the back-end in this process: these tests look into it (objective scale, solves)
+    options = SolverOptions(compile=False, max_time_s=10.0, isolated=False)
+    return InertialMorphingMpc(MODEL, MpcSettings(dt_s=0.05, integrator="rk4", options=options))
 
 
 def test_squared_radii_are_linear_in_the_principal_moments() -> None:

@@ -11,6 +11,9 @@ called so that this module stays importable without ROS.
   stamps (the latest one stamped at or before; the first back-fills the start;
   without any setpoint the measured inertia stands in, as in the library loop's
   open-loop runs); the gait phase (latched, unstamped) by log time.
+* The MPC node's counters on ``/diagnostics`` (solves not executed, deadlines
+  missed) are forward-filled into ``extras["mpc_failures"]`` and
+  ``extras["mpc_deadline_misses"]``, as the library loop records them.
 * Radii come from the measured joint positions
   (:func:`splitter_sim.core.kinematics.radii_from_joint_positions`).
 """
@@ -35,6 +38,9 @@ _log = logging.getLogger(__name__)
 _NS_PER_S = 1_000_000_000
 STATE_TOPICS = (names.IMU, names.ODOM, names.INERTIA, names.JOINT_STATES)
 GRAVITY_KEY = "gravity_m_s2"  # custom_data key a launcher may store in the bag
+MPC_DIAGNOSTICS_PREFIX = "inertial_morphing_mpc"  # the MPC node's /diagnostics status name
+# its cumulative counters, read into RunSeries.extras["mpc_<name>"] (the library loop's too)
+MPC_COUNTS = ("failures", "deadline_misses")
 
 
 class BagSeriesError(ValueError):
@@ -147,6 +153,13 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
         s = cv.wrench_from_msg(msg)
         out.add(s.t_ns, f=s.force_n)
 
+    def diagnostics(msg: Any, _: int, out: TopicSamples) -> None:
+        t_ns = cv.stamp_from_msg(msg.header.stamp)
+        for status in cv.diagnostics_from_msg(msg):
+            if status.name.startswith(MPC_DIAGNOSTICS_PREFIX):
+                counts = {k: float(status.values.get(k, np.nan)) for k in MPC_COUNTS}
+                out.add(t_ns, **counts)
+
     return {
         names.IMU: imu,
         names.ODOM: odom,
@@ -155,6 +168,7 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
         names.INERTIA_SETPOINT: vector,
         names.GAIT_PHASE: phase,
         names.JUMP_COMMAND: jump,
+        names.DIAGNOSTICS: diagnostics,
     }
 
 
@@ -219,6 +233,14 @@ def series_from_samples(
     if jump is not None and jump.stamps_ns:
         jump_force = forward_fill(jump.stamps_ns, jump.array("f"), grid, backfill=False)
         jump_force = np.nan_to_num(jump_force.astype(float), nan=0.0)  # no thrust before
+    extras = {}
+    diagnostics = samples.get(names.DIAGNOSTICS)
+    if diagnostics is not None and diagnostics.stamps_ns:
+        for key in MPC_COUNTS:  # counters: the latest report at or before each stamp
+            filled = forward_fill(
+                diagnostics.stamps_ns, diagnostics.array(key), grid, backfill=False
+            )
+            extras[f"mpc_{key}"] = np.nan_to_num(filled.astype(float), nan=0.0)
     return RunSeries(
         t_s=grid.astype(float) / _NS_PER_S,
         angular_velocity_rad_s=at(names.IMU, "w"),
@@ -232,6 +254,7 @@ def series_from_samples(
         gravity_m_s2=float(gravity_m_s2),
         gait_phase=phases,
         jump_force_n=jump_force,
+        extras=extras,
     )
 
 

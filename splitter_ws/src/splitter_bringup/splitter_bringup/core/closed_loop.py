@@ -105,14 +105,22 @@ def run_closed_loop(
     ``duration_s`` shortens the run.
     """
     model = model or RobotModel()
+    if controller is None:
+        with MorphingController(model, controller_config(scenario, mpc)) as own:
+            return run_closed_loop(
+                scenario,
+                progress,
+                model=model,
+                controller=own,
+                fail_solves_at_s=fail_solves_at_s,
+                duration_s=duration_s,
+            )
     sim = Simulator.from_scenario(scenario, model)
     gait = GaitPhaseMachine(gait_config_from_parameters(gait_parameters(scenario)))
     # The allocator node starts from the radii of the first measured inertia (projected,
     # its default ``initialize_from_measured_inertia``): the same start here.
     start_radii = project_inertia(model, sim.state().principal_inertia_kg_m2).radii_m
     allocator = TetherLimbAllocator(model, AllocatorConfig(), start_radii)
-    if controller is None:
-        controller = MorphingController(model, controller_config(scenario, mpc))
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
     duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
     dt_ns = sim.config.dt_ns
@@ -125,6 +133,7 @@ def run_closed_loop(
     setpoint = np.asarray(sim.state().principal_inertia_kg_m2, dtype=float)
     phase_name = ""
     solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
+    counts = {"failures": 0, "deadline_misses": 0}  # cumulative, as on /diagnostics
     started = time.monotonic()
     report_every = max(1, n_steps // 20)
     for step in range(n_steps + 1):
@@ -165,9 +174,10 @@ def run_closed_loop(
                     "ok": float(status.solve_ok),
                     "cost": status.cost,
                 }
+            counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
             allocation = allocator.allocate(t, setpoint, state.angular_velocity_rad_s)
             sim.command_joints(allocation.joint_position, allocation.joint_velocity)
-        _record(rec, state, setpoint, solve)
+        _record(rec, state, setpoint, solve, counts)
         phases.append(phase_name)
         if step < n_steps:
             sim.step()
@@ -201,10 +211,12 @@ _RECORDED = (
     "solve_iterations",
     "solve_ok",
     "solve_cost",
+    "failures",
+    "deadline_misses",
 )
 
 
-def _record(rec: dict[str, list], state, setpoint, solve: dict) -> None:
+def _record(rec: dict[str, list], state, setpoint, solve: dict, counts: dict) -> None:
     rec["t"].append(state.t_ns / NS_PER_S)
     rec["w"].append(state.angular_velocity_rad_s)
     rec["q"].append(state.orientation_wxyz)
@@ -223,6 +235,8 @@ def _record(rec: dict[str, list], state, setpoint, solve: dict) -> None:
     rec["solve_iterations"].append(solve["iterations"])
     rec["solve_ok"].append(solve["ok"])
     rec["solve_cost"].append(solve["cost"])
+    rec["failures"].append(counts["failures"])
+    rec["deadline_misses"].append(counts["deadline_misses"])
 
 
 def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSeries:
@@ -249,6 +263,8 @@ def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSerie
             "mpc_iterations": a["solve_iterations"],
             "mpc_solve_ok": a["solve_ok"],
             "mpc_cost": a["solve_cost"],
+            "mpc_failures": a["failures"],
+            "mpc_deadline_misses": a["deadline_misses"],
         },
     )
 

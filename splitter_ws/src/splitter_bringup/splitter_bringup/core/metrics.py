@@ -226,6 +226,13 @@ def flight_summary(
             "RMS of |w - w_ref| over the run",
         ),
     }
+    for key, text in (
+        ("mpc_failures", "MPC solves not executed (failed, late or missed deadline)"),
+        ("mpc_deadline_misses", "MPC solves abandoned at their wall-time deadline"),
+    ):
+        counts = series.extras.get(key)
+        if counts is not None and len(counts):
+            out[key] = Metric(float(np.nanmax(counts)), "-", text)
     return out
 
 

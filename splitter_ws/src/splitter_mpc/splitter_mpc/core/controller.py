@@ -9,15 +9,16 @@ for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
   the MPC"), once an attitude reference has been set. Inactive, or disabled
   (open loop), it holds the nominal inertia: the configured one, else the first
   inertia it measured.
-* A failed or late solve (solver error, non-finite or infeasible result, wall
-  time above ``SolverOptions.max_time_s``, injected failure) keeps the previous
+* A failed or late solve (solver error, non-finite problem data or result,
+  infeasible result, wall-time deadline ``SolverOptions.max_time_s`` missed: the
+  solver worker is killed and restarted, :mod:`.solver_worker`; injected failure) keeps the previous
   plan: its later steps are played back on the following ticks, the failure is
   counted and reported, and the next re-plan tries again. Without any plan it
   holds the measured inertia.
 * It never returns a non-finite setpoint.
 
-ROS-free and deterministic (the solvers are deterministic; a wall-time cap that
-is hit is reported).
+ROS-free and deterministic (the solvers are deterministic; a wall-time deadline
+that is missed is counted in ``ControllerStatus.deadline_misses``).
 """
 
 from __future__ import annotations
@@ -98,6 +99,7 @@ class ControllerStatus:
     plan_age_s: float = math.nan  # [s] since the executed plan was made
     solves: int = 0
     failures: int = 0
+    deadline_misses: int = 0  # solves abandoned at their wall-time deadline
     consecutive_failures: int = 0
     setpoint_kg_m2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
@@ -161,6 +163,18 @@ class MorphingController:
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""
         self._failures_to_inject += int(count)
+
+    def close(self) -> None:
+        """Stop the MPC's solver worker (if any; the Opti baseline has none)."""
+        close = getattr(self.mpc, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> MorphingController:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
 
     @property
     def status(self) -> ControllerStatus:
@@ -293,5 +307,6 @@ class MorphingController:
             "solve_ok": ok,
             "solves": previous.solves + 1,
             "failures": previous.failures + (0 if ok else 1),
+            "deadline_misses": getattr(self.mpc, "deadline_misses", 0),
             "consecutive_failures": consecutive,
         }

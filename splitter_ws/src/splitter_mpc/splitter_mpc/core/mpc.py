@@ -90,6 +90,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -100,11 +101,18 @@ from splitter_mpc.core.ocp import (
     N_MEASURED,
     NG_PATH,
     NU,
+    MorphingOcp,
     MpcWeights,
     build_ocp,
     dynamics_function,
     momentum_target,
     parameter_vector,
+)
+from splitter_mpc.core.solver_worker import (
+    STATUS_NON_FINITE_DATA,
+    SolverWorker,
+    failed_result,
+    non_finite_fields,
 )
 from splitter_mpc.core.solvers import (
     SOLVERS,
@@ -211,25 +219,51 @@ class MpcPlan:
         return (1.0 - share) * self.inertia[j] + share * self.inertia[j + 1]
 
 
+def morphing_problem(
+    model: RobotModel, settings: MpcSettings
+) -> tuple[MorphingLimits, MorphingOcp]:
+    """The limits and the OCP that ``settings`` describe for ``model``."""
+    s = settings
+    limits = morphing_limits(model, s.dt_s, s.tension_min_n, s.radius_rate_scale)
+    ocp = build_ocp(
+        s.horizon,
+        s.dt_s,
+        limits,
+        gap_next_minus_f=s.solver == "fatrop",
+        integrator=s.integrator,
+        attitude=s.attitude_states,
+    )
+    return limits, ocp
+
+
+def build_backend(model: RobotModel, settings: MpcSettings):
+    """The back-end of ``settings`` in this process (what a solver worker builds)."""
+    _, ocp = morphing_problem(model, settings)
+    return make_backend(settings.solver, ocp, settings.options)
+
+
 class InertialMorphingMpc:
-    """The OCP of :mod:`.ocp` with one back-end and a shifted warm start."""
+    """The OCP of :mod:`.ocp` with one back-end and a shifted warm start.
+
+    With ``settings.options.isolated`` the back-end is a
+    :class:`~splitter_mpc.core.solver_worker.SolverWorker`: every solve ends within
+    ``max_time_s`` of wall time whatever the solver does. Call :meth:`close` (or use
+    the object as a context manager) to stop the worker.
+    """
 
     def __init__(self, model: RobotModel, settings: MpcSettings | None = None) -> None:
         self.model = model
         self.settings = settings or MpcSettings()
         s = self.settings
-        self.limits: MorphingLimits = morphing_limits(
-            model, s.dt_s, s.tension_min_n, s.radius_rate_scale
-        )
-        self.ocp = build_ocp(
-            s.horizon,
-            s.dt_s,
-            self.limits,
-            gap_next_minus_f=s.solver == "fatrop",
-            integrator=s.integrator,
-            attitude=s.attitude_states,
-        )
-        self.backend = make_backend(s.solver, self.ocp, s.options)
+        self.limits, self.ocp = morphing_problem(model, s)
+        if s.options.isolated:
+            self.backend = SolverWorker(
+                partial(build_backend, model, s),
+                s.options.max_time_s,
+                wait_for_start=s.options.wait_for_worker_start,
+            )
+        else:
+            self.backend = make_backend(s.solver, self.ocp, s.options)
         self._dynamics = dynamics_function(
             s.dt_s, self.ocp.inertia_map, s.integrator, self.ocp.state
         ).expand()
@@ -238,6 +272,23 @@ class InertialMorphingMpc:
     @property
     def horizon(self) -> int:
         return self.settings.horizon
+
+    @property
+    def deadline_misses(self) -> int:
+        """Solves abandoned at their wall-time deadline (isolated back-end only)."""
+        return getattr(self.backend, "deadline_misses", 0)
+
+    def close(self) -> None:
+        """Stop the solver worker, if any."""
+        close = getattr(self.backend, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> InertialMorphingMpc:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
 
     def reset(self) -> None:
         """Forget the warm start (the next solve starts cold)."""
@@ -301,7 +352,12 @@ class InertialMorphingMpc:
             weights,
             nominal_inertia_kg_m2=nominal_inertia_kg_m2,
         )
-        result = self.backend.solve(data)
+        bad = non_finite_fields(data)
+        if bad:  # never handed to a solver (casadi#3857: fatrop can freeze on them)
+            _LOG.warning("MPC problem at t = %d ns has non-finite %s: not solved", t_ns, bad)
+            result = failed_result(data, STATUS_NON_FINITE_DATA, 0.0)
+        else:
+            result = self.backend.solve(data)
         xs, _ = self.ocp.split(result.z)
         layout = self.ocp.state
         if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
