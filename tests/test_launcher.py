@@ -44,10 +44,11 @@ def test_launch_file_starts_every_node_of_the_graph_by_its_console_script(tmp_pa
         assert re.search(rf'"{script} = {re.escape(module)}:main"', setup), (package, script)
 
 
-def start_launcher(out: Path, domain_id: int) -> subprocess.Popen:
+def start_launcher(out: Path, domain_id: int, *options: str) -> subprocess.Popen:
     env = ros_environment(domain_id=domain_id)
+    options = options or ("--no-record",)
     return subprocess.Popen(
-        [str(SPLITTER), "launch", "spin_stabilization", "--out", str(out), "--no-record"],
+        [str(SPLITTER), "launch", "spin_stabilization", "--out", str(out), *options],
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -91,6 +92,7 @@ def test_sigterm_stops_every_node_cleanly(tmp_path: Path) -> None:
             "inertial_morphing_mpc",
             "ik_tether_allocator",
             "gait_phase_manager",
+            "graph_watchdog",
             "simulator",
         }
         launcher.send_signal(signal.SIGTERM)
@@ -116,4 +118,68 @@ def test_a_node_that_dies_fails_the_launch(tmp_path: Path) -> None:
             launcher.kill()
     assert launcher.returncode == 1, output
     assert "ik_tether_allocator exited with code -9" in output
+    assert node_pids(tmp_path) == {}, "a node outlived the launcher"
+
+
+STALL_TIMEOUT_S = 3.0  # [s] wall
+
+
+@pytest.mark.slow
+def test_a_stalled_node_is_named_and_the_lockstep_run_fails_with_its_bag_finalized(
+    tmp_path: Path,
+) -> None:
+    from splitter_msgs_py.bag.reader import read_messages
+
+    launcher = start_launcher(
+        tmp_path,
+        int(os.environ["ROS_DOMAIN_ID"]) + 12,
+        "--stall-timeout",
+        str(STALL_TIMEOUT_S),
+    )
+    try:
+        wait_for_stepping(tmp_path)
+        time.sleep(1.0)
+        os.kill(node_pids(tmp_path)["inertial_morphing_mpc"], signal.SIGSTOP)  # frozen
+        stopped_at = time.monotonic()
+        output, _ = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert launcher.returncode == 1, output[-3000:]
+    assert re.search(
+        r"inertial_morphing_mpc makes no progress \(no /splitter/inertia_setpoint", output
+    )
+    assert time.monotonic() - stopped_at < STALL_TIMEOUT_S + 30.0
+    assert node_pids(tmp_path) == {}, "a node outlived the launcher"
+    # the bag is finalized (readable to its end) and holds the states until the stall
+    states = sum(1 for _ in read_messages(tmp_path / "bag", topics=["/splitter/imu"]))
+    assert states > 10
+
+
+@pytest.mark.slow
+def test_in_real_time_a_stalled_node_is_reported_and_the_rest_keeps_running(
+    tmp_path: Path,
+) -> None:
+    launcher = start_launcher(
+        tmp_path,
+        int(os.environ["ROS_DOMAIN_ID"]) + 13,
+        "--no-record",
+        "--real-time",
+        "--rate",
+        "2",
+        "--stall-timeout",
+        str(STALL_TIMEOUT_S),
+    )
+    try:
+        wait_for_stepping(tmp_path)
+        os.kill(node_pids(tmp_path)["inertial_morphing_mpc"], signal.SIGSTOP)
+        output, _ = launcher.communicate(timeout=90)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert (
+        "inertial_morphing_mpc makes no progress" in output and "the rest keeps running" in output
+    )
+    assert "simulation finished (duration_s reached)" in output, output[-3000:]  # ran to its end
+    assert "stalled:inertial_morphing_mpc" in output  # reported again at the end
     assert node_pids(tmp_path) == {}, "a node outlived the launcher"

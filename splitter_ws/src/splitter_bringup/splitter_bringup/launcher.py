@@ -4,8 +4,19 @@ The simulator is started last: in lockstep it waits until the controllers and
 the recorder are connected, then runs the scenario and exits at its end; the
 launcher then stops every other node, the recorder last (it takes what the others
 published until they exited, then closes its bag).
-A node that dies makes the launch fail with a non-zero exit code; Ctrl-C or
-SIGTERM stop every child cleanly.
+Ctrl-C or SIGTERM stop every child cleanly.
+
+A ``graph_watchdog`` node (:mod:`splitter_bringup.graph_watchdog_node`) watches
+the progress of every node of the data path and names a stalled one:
+
+* lockstep: a node that dies, or one that makes no progress for ``stall_timeout_s``
+  (wall), ends the run: the error names it, every other node is stopped (the
+  recorder last, so the bag is finalized) and the launch fails (``died:<node>`` or
+  ``stalled:<node>``). The simulator's own lockstep timeout is set well above it.
+* real time: a dead or stalled node is reported (logged, and listed in
+  :attr:`LaunchResult.incidents`) while the rest keeps running: the simulator
+  holds the last good joint commands, the allocator the last good setpoint. Only
+  the simulator's end, its death, the recorder's death or a stop end the run.
 """
 
 from __future__ import annotations
@@ -15,10 +26,10 @@ import re
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from splitter_bringup.core.graph_config import graph_nodes, write_parameter_file
+from splitter_bringup.core.graph_config import NodeLaunch, graph_nodes, write_parameter_file
 from splitter_bringup.core.processes import (
     ProcessSpec,
     Supervisor,
@@ -26,21 +37,29 @@ from splitter_bringup.core.processes import (
     node_argv,
 )
 from splitter_bringup.core.scenario import Scenario
+from splitter_bringup.core.watchdog import DEFAULT_STALL_TIMEOUT_S, PROGRESS_TOPICS
 from splitter_msgs_py.environment import ros_environment
 
 LOG = logging.getLogger(__name__)
 # [s] after the simulator's last step, time for the recorder to receive what is in flight
 DRAIN_S = 1.5
 _PROGRESS = re.compile(r"t = ([0-9.]+) s")
+_STALLED = re.compile(r"STALLED (\w+): (.*)")
+WATCHDOG = "graph_watchdog"
+# the simulator steps on after this many stall timeouts only when no watchdog ends the run
+SIMULATOR_TIMEOUT_FACTOR = 3.0
+# a death that does not end a real-time run (the graph keeps running without it)
+SURVIVABLE_IN_REAL_TIME = ("inertial_morphing_mpc", "ik_tether_allocator", "gait_phase_manager")
 
 
 @dataclass(frozen=True)
 class LaunchResult:
     """How a launch ended."""
 
-    outcome: str  # "ended", "stopped", "timeout" or "died:<node>"
+    outcome: str  # "ended", "stopped", "timeout", "died:<node>" or "stalled:<node>"
     exit_codes: dict[str, int | None]
     bag_dir: Path | None
+    incidents: tuple[str, ...] = ()  # real time: nodes reported dead or stalled
 
     @property
     def ok(self) -> bool:
@@ -58,15 +77,22 @@ def launch(
     multi_host: bool = False,
     domain_id: int | None = None,
     timeout_s: float | None = None,
+    stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S,
     quiet: bool = False,
     on_progress: Callable[[float], None] | None = None,
 ) -> LaunchResult:
-    """Run ``scenario`` through the node graph; records ``out_dir/bag`` when ``record``."""
+    """Run ``scenario`` through the node graph; records ``out_dir/bag`` when ``record``.
+
+    ``stall_timeout_s``: wall time without progress after which the watchdog names a
+    node stalled (module doc).
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     bag_dir = out_dir / "bag" if record else None
     env = ros_environment(domain_id=domain_id, multi_host=multi_host)
     env["PYTHONUNBUFFERED"] = "1"
     nodes = graph_nodes(scenario, real_time=real_time, rate_factor=rate_factor, bag_dir=bag_dir)
+    nodes = _with_watchdog(nodes, real_time, stall_timeout_s)
+    incidents: list[str] = []
 
     def on_line(name: str, line: str) -> None:
         match = _PROGRESS.search(line) if name == "simulator" else None
@@ -74,6 +100,15 @@ def launch(
             on_progress(float(match.group(1)))
         if not quiet:
             print(f"[{name}] {line}", file=sys.stderr, flush=True)
+        stalled = _STALLED.search(line) if name == WATCHDOG else None
+        if stalled:
+            node, reason = stalled.groups()
+            if real_time:
+                LOG.error("%s makes no progress (%s): the rest keeps running", node, reason)
+                incidents.append(f"stalled:{node}")
+            else:
+                LOG.error("%s makes no progress (%s): stopping the graph", node, reason)
+                supervisor.fail(f"stalled:{node}")
 
     supervisor = Supervisor(on_line=on_line, log_dir=out_dir / "logs")
     restore = install_stop_handlers(supervisor)
@@ -89,7 +124,8 @@ def launch(
                     stops_last=node.name == "recorder",
                 )
             )
-        outcome, code = supervisor.wait(timeout_s=timeout_s)
+        outcome, code = _wait(supervisor, timeout_s, real_time, incidents)
+        supervisor.stop_one(WATCHDOG)  # the end is decided: a stopping graph is no stall
         if outcome == "ended":
             time.sleep(DRAIN_S)
         if outcome.startswith("died:"):
@@ -99,4 +135,47 @@ def launch(
         codes = supervisor.stop_all()
     finally:
         restore()
-    return LaunchResult(outcome, codes, bag_dir)
+    return LaunchResult(outcome, codes, bag_dir, tuple(incidents))
+
+
+def _with_watchdog(
+    nodes: list[NodeLaunch], real_time: bool, stall_timeout_s: float
+) -> list[NodeLaunch]:
+    """``nodes`` with the watchdog before the simulator, whose lockstep timeout it undercuts."""
+    watched = [n.name for n in nodes if n.name in PROGRESS_TOPICS]
+    watchdog = NodeLaunch(
+        WATCHDOG,
+        "splitter_bringup.graph_watchdog_node:main",
+        "splitter_bringup.graph_watchdog_node:GraphWatchdogNode",
+        {
+            "watched_nodes": watched,
+            "lockstep": not real_time,
+            "stall_timeout_s": float(stall_timeout_s),
+        },
+    )
+    out = []
+    for node in nodes:
+        if node.name == "simulator":
+            out.append(watchdog)
+            timeout = SIMULATOR_TIMEOUT_FACTOR * float(stall_timeout_s)
+            out.append(replace(node, parameters={**node.parameters, "lockstep_timeout_s": timeout}))
+        else:
+            out.append(node)
+    return out
+
+
+def _wait(
+    supervisor: Supervisor, timeout_s: float | None, real_time: bool, incidents: list[str]
+) -> tuple[str, int | None]:
+    """The run's outcome; in real time a controller's death is reported, not an end."""
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    dead: set[str] = set()
+    while True:
+        remaining = None if deadline is None else max(0.0, deadline - time.monotonic())
+        outcome, code = supervisor.wait(timeout_s=remaining, ignore=dead)
+        node = outcome[5:] if outcome.startswith("died:") else ""
+        if not (real_time and node in SURVIVABLE_IN_REAL_TIME):
+            return outcome, code
+        LOG.error("%s exited with code %s: the rest keeps running", node, code)
+        incidents.append(outcome)
+        dead.add(node)

@@ -7,6 +7,7 @@ import logging
 from pathlib import Path
 
 from splitter_bringup.core.scenario import available_scenarios, load_scenario
+from splitter_bringup.core.watchdog import DEFAULT_STALL_TIMEOUT_S
 from splitter_bringup.launcher import launch
 
 LOG = logging.getLogger(__name__)
@@ -27,6 +28,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--rate", type=float, default=1.0, help="real-time rate factor")
     parser.add_argument("--no-record", action="store_true", help="do not record a bag")
+    parser.add_argument(
+        "--stall-timeout",
+        type=float,
+        default=DEFAULT_STALL_TIMEOUT_S,
+        help="wall seconds without progress after which a node is named stalled "
+        "(lockstep: the run stops and fails; real time: it is reported)",
+    )
     parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for every node")
     parser.add_argument(
         "--multi-host",
@@ -40,6 +48,9 @@ def main(args: argparse.Namespace) -> int:
     if args.rate <= 0.0:
         LOG.error("--rate must be > 0, got %s", args.rate)
         return 2
+    if not args.stall_timeout > 0.0:
+        LOG.error("--stall-timeout must be > 0, got %s", args.stall_timeout)
+        return 2
     scenario = load_scenario(args.scenario, args.variant)
     result = launch(
         scenario,
@@ -49,7 +60,10 @@ def main(args: argparse.Namespace) -> int:
         record=not args.no_record,
         multi_host=args.multi_host,
         domain_id=args.domain_id,
+        stall_timeout_s=args.stall_timeout,
     )
+    for incident in result.incidents:
+        LOG.error("during the run: %s", incident)
     for name, code in result.exit_codes.items():
         LOG.info("%-22s exit code %s", name, code)
     if result.bag_dir is not None:

@@ -15,7 +15,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -67,6 +67,7 @@ class Supervisor:
         self._log_dir = log_dir
         self.children: list[RunningProcess] = []
         self._stop_requested = threading.Event()
+        self._failure: str | None = None
 
     def start(self, spec: ProcessSpec) -> RunningProcess:
         """Start ``spec`` in its own process group, output forwarded to ``on_line``."""
@@ -86,8 +87,10 @@ class Supervisor:
             self._log_dir.mkdir(parents=True, exist_ok=True)
             log_file = (self._log_dir / f"{spec.name}.log").open("w", encoding="utf-8")
 
+        if popen.stdout is None:
+            raise RuntimeError(f"{spec.name}: no output pipe")
+
         def forward() -> None:
-            assert popen.stdout is not None
             try:
                 for raw in popen.stdout:
                     line = raw.rstrip("\n")
@@ -110,23 +113,34 @@ class Supervisor:
         """Ask :meth:`wait` to return (signal handlers call this)."""
         self._stop_requested.set()
 
-    def wait(self, timeout_s: float | None = None, poll_s: float = 0.05) -> tuple[str, int | None]:
+    def fail(self, outcome: str) -> None:
+        """Make :meth:`wait` return ``(outcome, None)`` (a watchdog found the run stuck)."""
+        self._failure = outcome
+        self._stop_requested.set()
+
+    def wait(
+        self,
+        timeout_s: float | None = None,
+        poll_s: float = 0.05,
+        ignore: Collection[str] = (),
+    ) -> tuple[str, int | None]:
         """Block until a child exits, a stop is requested or ``timeout_s`` passes.
 
         Returns ``("ended", code)`` when a process with ``ends_run`` exited,
-        ``("died:<name>", code)`` when any other child exited, ``("stopped", None)``
-        on a stop request and ``("timeout", None)`` when time ran out.
+        ``("died:<name>", code)`` when any other child exited (but those in
+        ``ignore``), ``("stopped", None)`` on a stop request, the outcome given to
+        :meth:`fail`, and ``("timeout", None)`` when time ran out.
         """
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while True:
             for child in self.children:
                 code = child.popen.poll()
-                if code is not None:
+                if code is not None and child.spec.name not in ignore:
                     if child.spec.ends_run:
                         return "ended", code
                     return f"died:{child.spec.name}", code
             if self._stop_requested.is_set():
-                return "stopped", None
+                return self._failure or "stopped", None
             if deadline is not None and time.monotonic() > deadline:
                 return "timeout", None
             time.sleep(poll_s)
@@ -191,6 +205,8 @@ class Supervisor:
         if child.popen.poll() is None:
             try:
                 os.killpg(child.popen.pid, sig)
+                if sig != signal.SIGKILL:  # a stopped (SIGSTOP) process handles it once continued
+                    os.killpg(child.popen.pid, signal.SIGCONT)
             except ProcessLookupError:
                 pass
 
