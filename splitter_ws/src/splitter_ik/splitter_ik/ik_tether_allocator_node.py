@@ -17,11 +17,27 @@ A thin layer over :class:`splitter_ik.core.allocator.TetherLimbAllocator`.
   of the ticks answered): saturation, rate limiting, tension and its margin,
   rejected and projected setpoints.
 
-Bad input: a setpoint with NaN / infinite or non-positive moments is rejected with
-a throttled warning and the tick is answered from the last good setpoint; an
-unreachable one is projected onto the reachable set (throttled warning). Invalid
-parameters stop the node at start-up with a message naming the parameter. Runs on
-simulated time unless ``use_sim_time`` is overridden.
+Bad input never raises out of a callback and never resets the allocator; every
+rejection is a throttled warning, counted (``rejection_counts``) and reported on
+``/diagnostics``:
+
+* a stamp that is negative, earlier than the last one of its topic (for a setpoint,
+  also earlier than the last tick answered: a stamp of 0 once time has advanced is
+  no "restart"), or more than ``MAX_STAMP_LEAD_NS`` ahead of the node's time (its
+  simulated clock, or the newest stamp it accepted): the message is dropped,
+  nothing is answered or changed;
+* a setpoint stamped well but with NaN / infinite values, a moment not in
+  ``(0, max_setpoint_kg_m2]`` (``SETPOINT_LIMIT_FACTOR`` times the largest reachable
+  moment of the model) or a frame other than ``base``: its tick is answered from
+  the last good setpoint;
+* an IMU with a bad quaternion, non-finite values, a body rate above
+  ``MAX_BODY_RATE_RAD_S`` or a frame other than ``base``; a measured inertia that is
+  not ``base``-framed moments in ``(0, 1e4]`` kg m^2: the last good one is kept.
+
+A reachable-set miss is not an error: the setpoint is projected onto the reachable
+set (throttled warning). Invalid parameters stop the node at start-up with a
+message naming the parameter. Runs on simulated time unless ``use_sim_time`` is
+overridden.
 """
 
 from __future__ import annotations
@@ -40,15 +56,18 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
-from splitter_ik.core.projection import project_inertia
+from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
+    MAX_STAMP_LEAD_NS,
     DiagnosticStatusSample,
     MessageValidationError,
+    StampGate,
+    checked_stamp_from_msg,
     diagnostics_to_msg,
     imu_from_msg,
     joint_state_to_msg,
-    stamp_from_msg,
+    principal_inertia_from_msg,
     vector3_from_msg,
 )
 from splitter_msgs_py.parameters import (
@@ -64,6 +83,12 @@ from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal
 
 NODE_NAME = "ik_tether_allocator"
 STATUS_NAME = f"{NODE_NAME}: allocation"
+# [-] a setpoint moment above this many times the largest reachable moment of the model
+# (163 kg m^2 for the paper's robot) is corrupt, not merely unreachable: rejected.
+SETPOINT_LIMIT_FACTOR = 10.0
+# [rad/s] an IMU body rate above this is corrupt (the robot spins at ~1 rad/s, its
+# joints at 84 rad/s; a gyro saturates far below): rejected.
+MAX_BODY_RATE_RAD_S = 1.0e3
 
 PARAMETERS = (
     ParameterSpec(
@@ -172,6 +197,10 @@ class IkTetherAllocatorNode(Node):
         self._last_good_setpoint: np.ndarray | None = None
         self._w: np.ndarray | None = None
         self._imu_t_ns: int | None = None
+        self._stamps = StampGate(MAX_STAMP_LEAD_NS)
+        self.max_setpoint_kg_m2 = SETPOINT_LIMIT_FACTOR * float(
+            np.max(reachable_inertia_bounds(self.model)[1])
+        )
         self._pending_fallback_t: int | None = None
         self._last_answered_t: int | None = None
         self._last_diagnostics_t: int | None = None
@@ -233,28 +262,75 @@ class IkTetherAllocatorNode(Node):
         return self.allocator
 
     # --- callbacks -----------------------------------------------------------------------
+    def _clock_ns(self) -> int | None:
+        """Simulated time of the node's clock [ns], None without a /clock reading yet."""
+        clock = self.get_clock()
+        if not getattr(clock, "ros_time_is_active", False):
+            return None  # wall-clock time says nothing about simulated stamps
+        now = clock.now().nanoseconds
+        return now if now > 0 else None
+
+    def _checked_stamp(self, topic: str, key: str, msg, answers_a_tick: bool = False) -> int | None:
+        """The message's stamp [ns] if it may be used, else None (warned and counted).
+
+        Rejected: negative or malformed, earlier than the last stamp of ``topic`` (or,
+        ``answers_a_tick``, than the last tick answered), or more than
+        ``MAX_STAMP_LEAD_NS`` ahead of the node's time.
+        """
+        try:
+            t_ns = checked_stamp_from_msg(msg.header.stamp)
+            self._stamps.check(topic, t_ns, self._clock_ns())
+            last = self._last_answered_t
+            if answers_a_tick and last is not None and t_ns < last:
+                raise MessageValidationError(
+                    f"header.stamp: {t_ns * 1e-9:.9f} s is earlier than the last tick "
+                    f"answered {last * 1e-9:.9f} s"
+                )
+        except MessageValidationError as exc:
+            self._window.rejected += 1
+            warn_throttled(
+                self, key, f"rejected {topic}: {exc}; dropped, the node keeps its last good data"
+            )
+            return None
+        self._stamps.accept(topic, t_ns)
+        return t_ns
+
     def _on_imu(self, msg: Imu) -> None:
+        t_ns = self._checked_stamp(names.IMU, "imu", msg)
+        if t_ns is None:
+            return
         try:
             sample = imu_from_msg(msg)
+            if msg.header.frame_id != names.BASE_FRAME:
+                raise MessageValidationError(
+                    f"header.frame_id: expected '{names.BASE_FRAME}', got {msg.header.frame_id!r}"
+                )
+            w = sample.angular_velocity_rad_s
+            if np.any(np.abs(w) > MAX_BODY_RATE_RAD_S):
+                raise MessageValidationError(
+                    f"angular_velocity: {w.tolist()} rad/s beyond {MAX_BODY_RATE_RAD_S:g} rad/s"
+                )
         except MessageValidationError as exc:
             self._window.rejected += 1
             warn_throttled(self, "imu", f"rejected /splitter/imu: {exc}; keeping the last good")
             return
-        self._w = sample.angular_velocity_rad_s
-        self._imu_t_ns = sample.t_ns
-        if self._pending_fallback_t is not None and self._pending_fallback_t == sample.t_ns:
-            self._answer_fallback(sample.t_ns)
+        self._w = w
+        self._imu_t_ns = t_ns
+        if self._pending_fallback_t is not None and self._pending_fallback_t == t_ns:
+            self._answer_fallback(t_ns)
 
     def _on_inertia(self, msg: Vector3Stamped) -> None:
+        t_ns = self._checked_stamp(names.INERTIA, "inertia", msg)
+        if t_ns is None:
+            return
         try:
-            sample = vector3_from_msg(msg)
+            sample = principal_inertia_from_msg(msg)
         except MessageValidationError as exc:
             self._window.rejected += 1
             warn_throttled(self, "inertia", f"rejected /splitter/inertia: {exc}")
             return
         if self.allocator is None and self._init_from_measured:
             self._ensure_allocator(project_inertia(self.model, sample.vector).radii_m)
-        t_ns = sample.t_ns
         if not self._fallback_enabled or t_ns % self._period_ns != 0:
             return
         if self.count_publishers(names.INERTIA_SETPOINT) > 0:
@@ -264,12 +340,29 @@ class IkTetherAllocatorNode(Node):
         else:
             self._pending_fallback_t = t_ns  # answered when the IMU of this tick arrives
 
+    def _checked_setpoint(self, msg: Vector3Stamped) -> np.ndarray:
+        """The setpoint [kg m^2]: finite, each moment in (0, max_setpoint_kg_m2], frame base."""
+        sample = vector3_from_msg(msg)
+        if sample.frame_id != names.BASE_FRAME:
+            raise MessageValidationError(
+                f"header.frame_id: expected '{names.BASE_FRAME}', got {sample.frame_id!r}"
+            )
+        setpoint = sample.vector
+        if np.any(setpoint <= 0.0) or np.any(setpoint > self.max_setpoint_kg_m2):
+            raise MessageValidationError(
+                f"vector: moments must be in (0, {self.max_setpoint_kg_m2:.4g}] kg m^2, "
+                f"got {setpoint.tolist()}"
+            )
+        return setpoint
+
     def _on_setpoint(self, msg: Vector3Stamped) -> None:
-        t_ns = stamp_from_msg(msg.header.stamp)
+        t_ns = self._checked_stamp(
+            names.INERTIA_SETPOINT, "setpoint_stamp", msg, answers_a_tick=True
+        )
+        if t_ns is None:
+            return
         try:
-            setpoint = vector3_from_msg(msg).vector
-            if np.any(setpoint <= 0.0):
-                raise MessageValidationError(f"vector: non-positive moment in {setpoint.tolist()}")
+            setpoint = self._checked_setpoint(msg)
         except MessageValidationError as exc:
             self._window.rejected += 1
             warn_throttled(
@@ -293,20 +386,23 @@ class IkTetherAllocatorNode(Node):
 
     def _answer_fallback(self, t_ns: int) -> None:
         self._pending_fallback_t = None
-        if self._last_answered_t == t_ns:
-            return
+        if self._last_answered_t is not None and self._last_answered_t >= t_ns:
+            return  # that tick is answered (or past): a late state changes nothing
         self._window.fallback += 1
         self._answer(t_ns, self._hold_setpoint())
 
     def _answer(self, t_ns: int, setpoint: np.ndarray) -> None:
         allocator = self._ensure_allocator()
         try:
+            # stamps were checked (never before the last tick) and the setpoint validated
             allocation = allocator.allocate(t_ns, setpoint, self._w)
-        except ValueError as exc:  # time went backwards (simulation restarted)
-            self.get_logger().warning(f"{exc}; restarting the allocator from the last radii")
-            allocator.reset(allocator.radii_m)
-            self._last_diagnostics_t = None
-            allocation = allocator.allocate(t_ns, setpoint, self._w)
+            command = joint_state_to_msg(t_ns, allocation.joint_position, allocation.joint_velocity)
+        except ValueError as exc:  # MessageValidationError too: nothing sent, state kept
+            self.get_logger().error(
+                f"t = {t_ns * 1e-9:.3f} s: tick not answered, the allocator refused it: {exc}",
+                throttle_duration_sec=2.0,
+            )
+            return
         if allocation.saturated:
             warn_throttled(
                 self,
@@ -314,9 +410,7 @@ class IkTetherAllocatorNode(Node):
                 f"setpoint {np.round(allocation.requested_inertia_kg_m2, 4).tolist()} kg m^2 at "
                 f"t = {t_ns * 1e-9:.3f} s is unreachable: projected onto the reachable set",
             )
-        self._commands_pub.publish(
-            joint_state_to_msg(t_ns, allocation.joint_position, allocation.joint_velocity)
-        )
+        self._commands_pub.publish(command)
         self.last_allocation = allocation
         self._last_answered_t = t_ns
         self._account(allocation)
@@ -341,7 +435,12 @@ class IkTetherAllocatorNode(Node):
         if last is not None and t_ns // self._diagnostics_ns == last // self._diagnostics_ns:
             return
         self._last_diagnostics_t = t_ns
-        self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [self.diagnostics_status()]))
+        try:
+            msg = diagnostics_to_msg(t_ns, [self.diagnostics_status()])
+        except MessageValidationError as exc:
+            self.get_logger().error(f"diagnostics not published: {exc}", throttle_duration_sec=2.0)
+        else:
+            self._diagnostics_pub.publish(msg)
         self._window = _Window()
 
     def diagnostics_status(self) -> DiagnosticStatusSample:

@@ -11,9 +11,19 @@ wrench when not thrusting) on every tick it answers. Waiting for all inputs of
 the same tick makes the answer independent of the order in which DDS delivers
 them, so runs repeat.
 
-An input that fails validation (NaN, non-unit quaternion, wrong frame, ...) is
-rejected with a throttled warning; its tick is still answered, from the last
-good message of that topic, so lockstep never stalls on bad data.
+Bad input never raises out of a callback and never resets the phase machine;
+every rejection is a throttled warning, counted and reported on ``/diagnostics``:
+
+* a message whose stamp is negative, earlier than the last one of its topic (a
+  stamp of 0 once time has advanced) or more than ``MAX_STAMP_LEAD_NS`` ahead of
+  the node's time (its simulated clock, or the newest stamp it accepted) is
+  dropped: it is filed under no tick and does not replace the last good message;
+* a well-stamped message that fails validation (NaN, non-unit quaternion, wrong
+  frame, unknown / missing joint names, a magnitude beyond the plausibility
+  limits ``MAX_POSITION_M``, ``MAX_SPEED_M_S``, ``MAX_BODY_RATE_RAD_S``,
+  ``MAX_CONTACT_FORCE_N``, ``MAX_TETHER_LENGTH_M``, inertia outside (0, 1e4] kg
+  m^2) still answers its tick, from the last good message of that topic, so
+  lockstep never stalls on bad data.
 
 Subscribes: ``/splitter/odom``, ``/splitter/hemi_{a,b}/contact_wrench`` (stance:
 world-z force above ``stance_force_threshold_n``), ``/splitter/joint_states``
@@ -29,6 +39,7 @@ simulated time).
 
 from __future__ import annotations
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
@@ -53,14 +64,16 @@ from splitter_mpc.core.gait import (
 )
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
+    MAX_STAMP_LEAD_NS,
     DiagnosticStatusSample,
     MessageValidationError,
+    StampGate,
+    checked_stamp_from_msg,
     diagnostics_to_msg,
     joint_state_from_msg,
     odom_from_msg,
     pose_to_msg,
     principal_inertia_from_msg,
-    stamp_from_msg,
     twist_to_msg,
     wrench_from_msg,
     wrench_to_msg,
@@ -81,6 +94,13 @@ TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
 TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
 # and /splitter/inertia when the attitude reference needs it (GaitConfig.needs_principal_inertia)
 MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
+# Plausibility limits of the measured state: beyond them a message is corrupt (or the
+# simulation diverged) and is rejected, so the phase machine only sees sane numbers.
+MAX_POSITION_M = 1.0e6  # [m] per odom position component (runs stay within ~100 m)
+MAX_SPEED_M_S = 1.0e3  # [m/s] per odom velocity component (a jump is a few m/s)
+MAX_BODY_RATE_RAD_S = 1.0e3  # [rad/s] per odom body-rate component (spin ~1 rad/s)
+MAX_CONTACT_FORCE_N = 1.0e7  # [N] per contact force component (weight ~ 30 N on the moon)
+MAX_TETHER_LENGTH_M = 100.0  # [m] tether joint position (the reel holds 6 m)
 
 # The jump plan: float arrays that a params file may give as [] (read as "not set").
 PLAN_PARAMETERS = (
@@ -237,6 +257,7 @@ class GaitPhaseManagerNode(Node):
         self._ticks_answered = 0
         self._stale_ticks = 0
         self._last_output: GaitOutput | None = None
+        self._stamps = StampGate(MAX_STAMP_LEAD_NS)
 
         self._jump_pub = self.create_publisher(
             WrenchStamped, names.JUMP_COMMAND, qos_for(names.JUMP_COMMAND)
@@ -296,56 +317,106 @@ class GaitPhaseManagerNode(Node):
         return config, (control_ns, diagnostics_ns)
 
     # -- inputs --------------------------------------------------------------------------
-    def _on_odom(self, msg: Odometry) -> None:
+    def _clock_ns(self) -> int | None:
+        """Simulated time of the node's clock [ns], None without sim time or a /clock yet."""
+        clock = self.get_clock()
+        if not getattr(clock, "ros_time_is_active", False):
+            return None  # wall-clock time says nothing about simulated stamps
+        now = clock.now().nanoseconds
+        return now if now > 0 else None
+
+    def _checked_stamp(self, topic: str, msg) -> int | None:
+        """The message's stamp [ns] if it may be used, else None (warned and counted)."""
         try:
-            sample = odom_from_msg(msg)
+            t_ns = checked_stamp_from_msg(msg.header.stamp)
+            self._stamps.check(topic, t_ns, self._clock_ns())
+        except MessageValidationError as exc:
+            warn_throttled(
+                self, topic, f"rejected {topic}: {exc}; dropped, keeping the last good message"
+            )
+            return None
+        self._stamps.accept(topic, t_ns)
+        return t_ns
+
+    @staticmethod
+    def _check_bound(field_name: str, values, limit: float, unit: str) -> None:
+        if np.any(np.abs(values) > limit):
+            raise MessageValidationError(
+                f"{field_name}: {np.asarray(values).tolist()} beyond +-{limit:g} {unit}"
+            )
+
+    def _on_odom(self, msg: Odometry) -> None:
+        t_ns = self._checked_stamp(names.ODOM, msg)
+        if t_ns is None:
+            return
+        try:
             if msg.header.frame_id != names.WORLD_FRAME:
                 raise MessageValidationError(
-                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{msg.header.frame_id}'"
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got {msg.header.frame_id!r}"
                 )
+            if msg.child_frame_id != names.BASE_FRAME:  # the frame of the twist
+                raise MessageValidationError(
+                    f"child_frame_id: expected '{names.BASE_FRAME}', got {msg.child_frame_id!r}"
+                )
+            sample = odom_from_msg(msg)
+            self._check_bound("pose.position", sample.position_m, MAX_POSITION_M, "m")
+            self._check_bound("twist.linear", sample.velocity_world_m_s, MAX_SPEED_M_S, "m/s")
+            self._check_bound(
+                "twist.angular", sample.angular_velocity_rad_s, MAX_BODY_RATE_RAD_S, "rad/s"
+            )
         except MessageValidationError as exc:
-            self._reject(names.ODOM, msg.header.stamp, exc)
+            self._reject(names.ODOM, t_ns, exc)
             return
-        self._accept(names.ODOM, sample.t_ns, sample)
+        self._accept(names.ODOM, t_ns, sample)
 
     def _on_contact(self, topic: str, msg: WrenchStamped) -> None:
+        t_ns = self._checked_stamp(topic, msg)
+        if t_ns is None:
+            return
         try:
             sample = wrench_from_msg(msg)
             if sample.frame_id != names.WORLD_FRAME:
                 raise MessageValidationError(
-                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{sample.frame_id}'"
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got {sample.frame_id!r}"
                 )
+            self._check_bound("wrench.force", sample.force_n, MAX_CONTACT_FORCE_N, "N")
         except MessageValidationError as exc:
-            self._reject(topic, msg.header.stamp, exc)
+            self._reject(topic, t_ns, exc)
             return
-        self._accept(topic, sample.t_ns, sample)
+        self._accept(topic, t_ns, sample)
 
     def _on_joint_states(self, msg: JointState) -> None:
+        t_ns = self._checked_stamp(names.JOINT_STATES, msg)
+        if t_ns is None:
+            return
         try:
             sample = joint_state_from_msg(msg)
-            if sample.position[TETHER_INDEX] <= 0.0:
+            tether = float(sample.position[TETHER_INDEX])
+            if not 0.0 < tether <= MAX_TETHER_LENGTH_M:
                 raise MessageValidationError(
-                    f"position: tether length {sample.position[TETHER_INDEX]} m is not > 0"
+                    f"position: tether length {tether} m is not in (0, {MAX_TETHER_LENGTH_M:g}] m"
                 )
         except MessageValidationError as exc:
-            self._reject(names.JOINT_STATES, msg.header.stamp, exc)
+            self._reject(names.JOINT_STATES, t_ns, exc)
             return
-        self._accept(names.JOINT_STATES, sample.t_ns, sample)
+        self._accept(names.JOINT_STATES, t_ns, sample)
 
     def _on_inertia(self, msg: Vector3Stamped) -> None:
+        t_ns = self._checked_stamp(names.INERTIA, msg)
+        if t_ns is None:
+            return
         try:
             sample = principal_inertia_from_msg(msg)
         except MessageValidationError as exc:
-            self._reject(names.INERTIA, msg.header.stamp, exc)
+            self._reject(names.INERTIA, t_ns, exc)
             return
-        self._accept(names.INERTIA, sample.t_ns, sample)
+        self._accept(names.INERTIA, t_ns, sample)
 
     def _accept(self, topic: str, t_ns: int, sample: object) -> None:
         self._last_good[topic] = sample
         self._collect(topic, t_ns, sample)
 
-    def _reject(self, topic: str, stamp, exc: MessageValidationError) -> None:
-        t_ns = stamp_from_msg(stamp)
+    def _reject(self, topic: str, t_ns: int, exc: MessageValidationError) -> None:
         warn_throttled(
             self, topic, f"rejected {topic} stamped {t_ns * 1e-9:.3f} s: {exc}; using last good"
         )
@@ -407,8 +478,11 @@ class GaitPhaseManagerNode(Node):
                     (float(contact_a.force_n[2]), float(contact_b.force_n[2])),
                     None if inertia is None else inertia.vector,
                 )
-            except ValueError as exc:
-                self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: gait update failed: {exc}")
+            except ValueError as exc:  # inputs are validated: a bug, reported, zero thrust
+                self.get_logger().error(
+                    f"tick {t_ns * 1e-9:.3f} s: gait update failed: {exc}",
+                    throttle_duration_sec=2.0,
+                )
         self._publish(t_ns, output)
 
     def _publish(self, t_ns: int, output: GaitOutput | None) -> None:

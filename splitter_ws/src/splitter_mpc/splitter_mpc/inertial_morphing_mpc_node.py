@@ -38,6 +38,7 @@ from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     MessageValidationError,
+    StampGate,
     diagnostics_to_msg,
     imu_from_msg,
     pose_from_msg,
@@ -208,6 +209,7 @@ class InertialMorphingMpcNode(Node):
         self._phase: str | None = None
         self._waiting_tick: int | None = None
         self._last_answered: int | None = None
+        self._stamps = StampGate()  # no stamp backwards per topic, none far ahead
         self.published = 0
 
         self._setpoint_pub = self.create_publisher(
@@ -240,6 +242,21 @@ class InertialMorphingMpcNode(Node):
     def _reject(self, topic: str, exc: Exception) -> None:
         warn_throttled(self, topic, f"rejected {topic}: {exc}; keeping the last good data")
 
+    def _clock_ns(self) -> int | None:
+        """The node's (simulated) time, None before the first /clock."""
+        now = self.get_clock().now().nanoseconds
+        return now if now > 0 else None
+
+    def _checked_stamp(self, topic: str, t_ns: int) -> int:
+        """``t_ns`` if in order on ``topic``, not before the last answered tick, not far ahead."""
+        self._stamps.check(topic, t_ns, self._clock_ns())
+        if self._last_answered is not None and t_ns < self._last_answered:
+            raise MessageValidationError(
+                f"header.stamp {t_ns * 1e-9:.3f} s: before the tick already answered "
+                f"({self._last_answered * 1e-9:.3f} s)"
+            )
+        return t_ns
+
     def _on_imu(self, msg: Imu) -> None:
         try:
             sample = imu_from_msg(msg)
@@ -247,38 +264,46 @@ class InertialMorphingMpcNode(Node):
                 raise MessageValidationError(
                     f"angular_velocity: |w| component above {MAX_RATE_RAD_S} rad/s"
                 )
+            self._checked_stamp(names.IMU, sample.t_ns)
         except MessageValidationError as exc:
             self._reject(names.IMU, exc)
             return
+        self._stamps.accept(names.IMU, sample.t_ns)
         self._imu[sample.t_ns] = sample
         self._try_tick(sample.t_ns)
 
     def _on_inertia(self, msg: Vector3Stamped) -> None:
         try:
             sample = principal_inertia_from_msg(msg)
+            self._checked_stamp(names.INERTIA, sample.t_ns)
         except MessageValidationError as exc:
             self._reject(names.INERTIA, exc)
             return
+        self._stamps.accept(names.INERTIA, sample.t_ns)
         self._inertia[sample.t_ns] = sample.vector
         self._try_tick(sample.t_ns)
 
     def _on_w_ref(self, msg: TwistStamped) -> None:
         try:
-            self._w_ref = twist_from_msg(msg)
-            if np.max(np.abs(self._w_ref[1])) > MAX_RATE_RAD_S:
-                self._w_ref = None
+            w_ref = twist_from_msg(msg)
+            if np.max(np.abs(w_ref[1])) > MAX_RATE_RAD_S:
                 raise MessageValidationError("twist.angular: above the rate limit")
+            self._stamps.check(names.ATTITUDE_REFERENCE, w_ref[0], self._clock_ns())
         except MessageValidationError as exc:
             self._reject(names.ATTITUDE_REFERENCE, exc)
             return
+        self._stamps.accept(names.ATTITUDE_REFERENCE, w_ref[0])
+        self._w_ref = w_ref
         self._update_reference()
 
     def _on_q_ref(self, msg: PoseStamped) -> None:
         try:
             t_ns, q, _ = pose_from_msg(msg)
+            self._stamps.check(names.ATTITUDE_REFERENCE_POSE, t_ns, self._clock_ns())
         except MessageValidationError as exc:
             self._reject(names.ATTITUDE_REFERENCE_POSE, exc)
             return
+        self._stamps.accept(names.ATTITUDE_REFERENCE_POSE, t_ns)
         self._q_ref = (t_ns, q)
         self._update_reference()
 

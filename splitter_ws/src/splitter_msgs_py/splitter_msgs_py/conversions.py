@@ -9,7 +9,9 @@ number, so no node can publish NaN through these functions.
 
 Quaternions are scalar-first ``(w, x, y, z)`` in numpy and ``(x, y, z, w)`` in
 ROS messages; this module is the only place that converts between the two.
-Time is integer nanoseconds of (simulated) time.
+Time is integer nanoseconds of (simulated) time; :func:`checked_stamp_from_msg`
+and :class:`StampGate` are how a node rejects a stamp that is negative, goes
+backwards on its topic or runs far ahead of the node's time.
 """
 
 from __future__ import annotations
@@ -54,6 +56,11 @@ def _finite_vector(value: ArrayLike, size: int, field_name: str) -> NDArray[np.f
 def unit_quaternion(q_wxyz: ArrayLike, field_name: str = "orientation") -> NDArray[np.float64]:
     """Validated unit quaternion: normalized within tolerance, rejected beyond it."""
     q = _finite_vector(q_wxyz, 4, field_name)
+    largest = float(np.max(np.abs(q)))
+    if largest > 1.0 + QUATERNION_NORM_TOLERANCE:  # (its norm could overflow)
+        raise MessageValidationError(
+            f"{field_name}: quaternion norm is not 1 (a component is {largest:.6g})"
+        )
     norm = float(np.linalg.norm(q))
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise MessageValidationError(f"{field_name}: quaternion norm {norm:.6g} is not 1")
@@ -104,6 +111,79 @@ def stamp_to_msg(t_ns: int) -> Time:
 def stamp_from_msg(msg: Time) -> int:
     """Integer nanoseconds of a builtin_interfaces/Time."""
     return int(msg.sec) * _NS_PER_S + int(msg.nanosec)
+
+
+def checked_stamp_from_msg(msg: Time) -> int:
+    """Integer nanoseconds of a Time that is >= 0 with ``nanosec`` < 1e9.
+
+    Raises :class:`MessageValidationError` otherwise (``sec`` is a signed int32 and
+    ``nanosec`` an uint32 on the wire, so both can be out of range).
+    """
+    sec, nanosec = int(msg.sec), int(msg.nanosec)
+    if sec < 0:
+        raise MessageValidationError(f"header.stamp: negative time ({sec} s)")
+    if nanosec >= _NS_PER_S:
+        raise MessageValidationError(f"header.stamp: nanosec {nanosec} is not below 1e9")
+    return sec * _NS_PER_S + nanosec
+
+
+# [ns] how far a message stamp may run ahead of the latest time a node knows (the
+# newest stamp it accepted, or its clock) before it is rejected as corrupt: a stamp
+# accepted that far ahead would make every later, correct message look out of order.
+MAX_STAMP_LEAD_NS = 1_000_000_000
+
+
+class StampGate:
+    """Checks the stamps of a node's inputs: never backwards on a topic, never far ahead.
+
+    Per topic, a stamp earlier than the last one accepted is rejected (out of order,
+    or a stamp of 0 once time has advanced); an equal one is accepted (a repeat of
+    the same tick). Across topics, a stamp more than ``max_lead_ns`` beyond the
+    node's time (the newest stamp accepted on any topic, or ``clock_ns`` if later)
+    is rejected. The very first stamp of a node that has no clock has nothing to be
+    compared with and is accepted. Rejections raise :class:`MessageValidationError`
+    and change nothing; :meth:`accept` records a stamp once the node acted on it.
+    """
+
+    def __init__(self, max_lead_ns: int = MAX_STAMP_LEAD_NS) -> None:
+        if int(max_lead_ns) < 0:
+            raise ValueError(f"max_lead_ns must be >= 0, got {max_lead_ns}")
+        self.max_lead_ns = int(max_lead_ns)
+        self._last: dict[str, int] = {}
+
+    @property
+    def latest_ns(self) -> int | None:
+        """The newest stamp accepted on any topic [ns], None before any."""
+        return max(self._last.values(), default=None)
+
+    def last_ns(self, topic: str) -> int | None:
+        """The last stamp accepted on ``topic`` [ns], None before any."""
+        return self._last.get(topic)
+
+    def check(self, topic: str, t_ns: int, clock_ns: int | None = None) -> int:
+        """``t_ns`` when it may be accepted on ``topic``; ``MessageValidationError`` if not."""
+        t_ns = int(t_ns)
+        if t_ns < 0:
+            raise MessageValidationError(f"header.stamp: negative time {t_ns} ns")
+        last = self._last.get(topic)
+        if last is not None and t_ns < last:
+            raise MessageValidationError(
+                f"header.stamp: {t_ns * 1e-9:.9f} s is earlier than the last accepted "
+                f"{last * 1e-9:.9f} s (out of order, or time restarted)"
+            )
+        references = [v for v in (clock_ns, self.latest_ns) if v is not None]
+        if references:
+            now = max(references)
+            if t_ns > now + self.max_lead_ns:
+                raise MessageValidationError(
+                    f"header.stamp: {t_ns * 1e-9:.9f} s is more than "
+                    f"{self.max_lead_ns * 1e-9:g} s ahead of the node's time {now * 1e-9:.9f} s"
+                )
+        return t_ns
+
+    def accept(self, topic: str, t_ns: int) -> None:
+        """Record ``t_ns`` (checked) as the last stamp of ``topic``."""
+        self._last[topic] = max(int(t_ns), self._last.get(topic, 0))
 
 
 def clock_to_msg(t_ns: int) -> Clock:
@@ -180,13 +260,15 @@ def odom_to_msg(
     """nav_msgs/Odometry: pose in ``world``, twist in ``base`` (REP 105)."""
     q = unit_quaternion(orientation_wxyz)
     v_world = _finite_vector(velocity_world_m_s, 3, "velocity")
+    with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+        v_base = _finite_vector(quaternion_to_matrix(q).T @ v_world, 3, "velocity (base frame)")
     msg = Odometry()
     msg.header.stamp = stamp_to_msg(t_ns)
     msg.header.frame_id = names.WORLD_FRAME
     msg.child_frame_id = names.BASE_FRAME
     _set_vector3(msg.pose.pose.position, _finite_vector(position_m, 3, "position"))
     _set_quaternion(msg.pose.pose.orientation, q)
-    _set_vector3(msg.twist.twist.linear, quaternion_to_matrix(q).T @ v_world)
+    _set_vector3(msg.twist.twist.linear, v_base)
     _set_vector3(
         msg.twist.twist.angular, _finite_vector(angular_velocity_rad_s, 3, "angular_velocity")
     )
@@ -197,11 +279,13 @@ def odom_from_msg(msg: Odometry) -> OdomSample:
     """Validated :class:`OdomSample`; the base-frame linear twist is rotated to world."""
     q = unit_quaternion(_xyzw_to_wxyz(msg.pose.pose.orientation), "pose.orientation")
     v_base = _finite_vector(_vector3(msg.twist.twist.linear), 3, "twist.linear")
+    with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+        v_world = _finite_vector(quaternion_to_matrix(q) @ v_base, 3, "twist.linear (world)")
     return OdomSample(
         t_ns=stamp_from_msg(msg.header.stamp),
         position_m=_finite_vector(_point(msg.pose.pose.position), 3, "pose.position"),
         orientation_wxyz=q,
-        velocity_world_m_s=quaternion_to_matrix(q) @ v_base,
+        velocity_world_m_s=v_world,
         angular_velocity_rad_s=_finite_vector(
             _vector3(msg.twist.twist.angular), 3, "twist.angular"
         ),
@@ -244,7 +328,7 @@ def principal_inertia_from_msg(msg: Vector3Stamped) -> Vector3Sample:
     sample = vector3_from_msg(msg)
     if sample.frame_id != names.BASE_FRAME:
         raise MessageValidationError(
-            f"header.frame_id: expected '{names.BASE_FRAME}', got '{sample.frame_id}'"
+            f"header.frame_id: expected '{names.BASE_FRAME}', got {sample.frame_id!r}"
         )
     if np.any(sample.vector <= 0.0) or np.any(sample.vector > MAX_PRINCIPAL_INERTIA_KG_M2):
         raise MessageValidationError(

@@ -147,3 +147,51 @@ def test_every_topic_has_a_message_class() -> None:
         assert type_name.endswith(cls.__name__)
     with pytest.raises(ValueError):
         conv.message_class("not_a_type")
+
+
+def test_checked_stamp_rejects_negative_and_unnormalized_stamps() -> None:
+    from builtin_interfaces.msg import Time
+
+    assert conv.checked_stamp_from_msg(Time(sec=3, nanosec=999_999_999)) == 3_999_999_999
+    assert conv.checked_stamp_from_msg(Time()) == 0
+    for bad in (Time(sec=-1), Time(sec=0, nanosec=1_000_000_000), Time(sec=1, nanosec=2**32 - 1)):
+        with pytest.raises(conv.MessageValidationError, match=r"header\.stamp"):
+            conv.checked_stamp_from_msg(bad)
+
+
+def test_stamp_gate_per_topic_order_and_lead() -> None:
+    gate = conv.StampGate(max_lead_ns=100)
+    assert gate.latest_ns is None
+    gate.accept("a", gate.check("a", 10_000))  # the first stamp has no reference
+    gate.accept("a", gate.check("a", 10_000))  # a repeat is fine
+    with pytest.raises(conv.MessageValidationError, match="earlier"):
+        gate.check("a", 0)  # zero once time advanced
+    with pytest.raises(conv.MessageValidationError, match="earlier"):
+        gate.check("a", 9_999)
+    gate.accept("b", gate.check("b", 5))  # another topic has its own order ...
+    with pytest.raises(conv.MessageValidationError, match="ahead"):
+        gate.check("b", 10_101)  # ... but the node's time is shared
+    with pytest.raises(conv.MessageValidationError, match="ahead"):
+        gate.check("c", 20_000, clock_ns=10)  # a fresh topic: the newest stamp counts
+    gate.check("c", 20_000, clock_ns=19_950)  # a later clock moves the node's time
+    with pytest.raises(conv.MessageValidationError, match="negative"):
+        gate.check("c", -1)
+    assert (gate.last_ns("a"), gate.last_ns("b"), gate.last_ns("c")) == (10_000, 5, None)
+    assert gate.latest_ns == 10_000
+    with pytest.raises(ValueError):
+        conv.StampGate(-1)
+
+
+def test_huge_numbers_are_rejected_not_overflowed() -> None:
+    q = random_quaternion()
+    msg = conv.odom_to_msg(0, [0, 0, 0], q, [0, 0, 0], [0, 0, 0])
+    msg.twist.twist.linear.x = msg.twist.twist.linear.y = 1.7e308
+    msg.twist.twist.linear.z = -1.7e308
+    msg.pose.pose.orientation.w, msg.pose.pose.orientation.x = 0.6, 0.8  # rotates x into y
+    msg.pose.pose.orientation.y = msg.pose.pose.orientation.z = 0.0
+    with np.errstate(all="raise"), pytest.raises(conv.MessageValidationError, match="twist"):
+        conv.odom_from_msg(msg)
+    with np.errstate(all="raise"), pytest.raises(conv.MessageValidationError, match="quaternion"):
+        conv.unit_quaternion([1e300, 0.0, 0.0, 1e300])
+    with pytest.raises(conv.MessageValidationError, match="velocity"):
+        conv.odom_to_msg(0, [0, 0, 0], [0.6, 0.8, 0, 0], [0, 1.7e308, 1.7e308], [0, 0, 0])

@@ -24,10 +24,21 @@ Modes (docs/ARCHITECTURE.md, "Lockstep protocol"):
 * ``real_time``: steps on a wall-clock timer at ``dt_s / rate_factor`` and never
   waits for commands (at start-up, up to ``startup_wait_s`` for state subscribers).
 
-Bad input: a command with NaN or infinite values, unknown or missing joint
-names, or values out of the joint / tether range is rejected with a throttled
-warning and the last good command stays in force. Invalid parameters stop the
-node at start-up with a message naming the parameter.
+Bad input never raises out of a callback; it is rejected with a throttled warning
+(counted, reported on ``/diagnostics``) and the last good command stays in force:
+
+* a command whose stamp is negative, earlier than the last one of its topic (a
+  stamp of 0 once time has advanced) or later than the simulated time (commands
+  answer states the simulator published; one from the future is corrupt) is
+  dropped: it is not applied and does not answer a lockstep tick;
+* a well-stamped joint command with NaN or infinite values, unknown, missing or
+  duplicate joint names, mismatched array lengths, or positions / velocities out
+  of the joint / tether range or speed; a well-stamped jump command with
+  non-finite values, a frame other than ``world``, a force above
+  ``MAX_JUMP_FORCE_N`` or a torque above ``MAX_JUMP_TORQUE_NM``: not applied, but
+  it still answers its lockstep tick (the simulator steps on the last good command).
+
+Invalid parameters stop the node at start-up with a message naming the parameter.
 """
 
 from __future__ import annotations
@@ -56,13 +67,14 @@ from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     MessageValidationError,
+    StampGate,
+    checked_stamp_from_msg,
     clock_to_msg,
     diagnostics_to_msg,
     imu_to_msg,
     joint_state_from_msg,
     joint_state_to_msg,
     odom_to_msg,
-    stamp_from_msg,
     stamp_to_msg,
     vector3_to_msg,
     wrench_from_msg,
@@ -98,6 +110,11 @@ LOCKSTEP_POLL_S = 0.005  # [s] wall period of the lockstep driver timer
 BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
 REAL_TIME_MAX_CATCH_UP = 20  # steps one real-time callback may do to catch up
 MAX_JUMP_FORCE_N = 1.0e4  # [N] a jump command beyond this is rejected as out of range
+# [N m] a jump torque (lever x force, used only to pick the pushing hemi) beyond this
+# is rejected: MAX_JUMP_FORCE_N on a 10 m lever (the hemis are at most 3 m from the COM)
+MAX_JUMP_TORQUE_NM = 1.0e5
+# [ns] commands may not be stamped later than the simulated time: they answer states
+MAX_COMMAND_LEAD_NS = 0
 _DEFAULT_CONFIG = SimConfig()
 
 PARAMETERS = (
@@ -315,6 +332,7 @@ class SimulatorNode(Node):
         self._published_t_ns: int | None = None
         self._wait_since: float | None = None
         self._command_stamp: dict[str, int | None] = dict.fromkeys(LOCKSTEP_TOPICS)
+        self._stamps = StampGate(MAX_COMMAND_LEAD_NS)
         self._lockstep_timeouts = 0
         self._slack_events = 0
         self._was_slack = False
@@ -413,8 +431,30 @@ class SimulatorNode(Node):
             raise _named(exc, _FIELD_PARAMETERS) from exc
 
     # --- commands ----------------------------------------------------------------------
+    def _checked_stamp(self, topic: str, key: str, msg) -> int | None:
+        """The command's stamp [ns] if it may be used, else None (warned and counted).
+
+        Rejected: negative or malformed, earlier than the last command of ``topic``,
+        or later than the simulated time.
+        """
+        try:
+            stamp = checked_stamp_from_msg(msg.header.stamp)
+            self._stamps.check(topic, stamp, self._sim.time_ns)
+        except MessageValidationError as exc:
+            warn_throttled(
+                self,
+                key,
+                f"rejected {topic} at simulated t = {self._sim.time_ns * 1e-9:.3f} s: {exc}; "
+                "dropped, the last good command stays in force",
+            )
+            return None
+        self._stamps.accept(topic, stamp)
+        return stamp
+
     def _on_joint_commands(self, msg: JointState) -> None:
-        stamp = stamp_from_msg(msg.header.stamp)
+        stamp = self._checked_stamp(names.JOINT_COMMANDS, "joint_commands", msg)
+        if stamp is None:
+            return
         try:
             sample = joint_state_from_msg(msg)
             self._sim.command_joints(sample.position, sample.velocity)
@@ -425,18 +465,25 @@ class SimulatorNode(Node):
         self._command_arrived(names.JOINT_COMMANDS, stamp)
 
     def _on_jump_command(self, msg: WrenchStamped) -> None:
-        stamp = stamp_from_msg(msg.header.stamp)
+        stamp = self._checked_stamp(names.JUMP_COMMAND, "jump_command", msg)
+        if stamp is None:
+            return
         try:
             sample = wrench_from_msg(msg)
             if sample.frame_id != names.WORLD_FRAME:
                 raise MessageValidationError(
-                    f"header.frame_id: expected '{names.WORLD_FRAME}', got '{sample.frame_id}'"
+                    f"header.frame_id: expected '{names.WORLD_FRAME}', got {sample.frame_id!r}"
                 )
-            if np.linalg.norm(sample.force_n) > MAX_JUMP_FORCE_N:
-                raise MessageValidationError(
-                    f"wrench.force: |F| = {np.linalg.norm(sample.force_n):.4g} N exceeds "
-                    f"{MAX_JUMP_FORCE_N:g} N"
-                )
+            for label, vector, limit, unit in (
+                ("force", sample.force_n, MAX_JUMP_FORCE_N, "N"),
+                ("torque", sample.torque_nm, MAX_JUMP_TORQUE_NM, "N m"),
+            ):
+                # component check first: the norm of a huge vector would overflow
+                if np.max(np.abs(vector)) > limit or np.linalg.norm(vector) > limit:
+                    raise MessageValidationError(
+                        f"wrench.{label}: {vector.tolist()} {unit} exceeds |{label}| "
+                        f"<= {limit:g} {unit}"
+                    )
             self._sim.command_jump_force(
                 sample.force_n, self._pushing_hemi(sample.force_n, sample.torque_nm)
             )

@@ -15,7 +15,10 @@ and weighs. The nearest point is a strictly convex box-constrained least-squares
 problem in ``s`` (``A`` is invertible); it is solved exactly by enumerating the
 3^3 active sets (each squared radius free, at its lower or at its upper bound)
 and keeping the feasible candidate of least distance. No iteration, no tolerance
-on convergence, deterministic.
+on convergence, deterministic. Any finite request works, up to the largest float:
+squared distances are compared less the common ``|b|^2`` and divided by the
+request's magnitude (so they neither overflow nor drown in rounding), and
+candidates that overflow are skipped; the 8 vertices are always candidates.
 """
 
 from __future__ import annotations
@@ -66,29 +69,48 @@ def reachable_inertia_bounds(model: RobotModel) -> tuple[NDArray[np.float64], ND
 def _box_least_squares(
     a: NDArray[np.float64], b: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """argmin |a s - b| over lo <= s <= hi, invertible 3x3 ``a``: exact active-set enumeration."""
+    """argmin |a s - b| over lo <= s <= hi, invertible 3x3 ``a``: exact active-set enumeration.
+
+    Raises ``ValueError`` if no candidate is finite, which cannot happen for a finite
+    ``b`` (the vertices are finite and their scaled distances cannot overflow).
+    """
     slack = 1e-12 * np.maximum(1.0, np.abs(hi))
-    interior = np.linalg.solve(a, b)
-    if np.all(interior >= lo - slack) and np.all(interior <= hi + slack):
-        return np.clip(interior, lo, hi)  # the unconstrained minimum is feasible
-    best, best_cost = None, math.inf
-    for pattern in itertools.product((0, 1, 2), repeat=3):  # 0 free, 1 at lo, 2 at hi
-        s = np.where(np.array(pattern) == 1, lo, hi).astype(float)
-        free = [i for i, p in enumerate(pattern) if p == 0]
-        if free:
-            fixed = [i for i, p in enumerate(pattern) if p != 0]
-            rhs = b - a[:, fixed] @ s[fixed]
-            if len(free) == 3:
-                s_free = np.linalg.solve(a, rhs)
-            else:
-                s_free = np.linalg.lstsq(a[:, free], rhs, rcond=None)[0]
-            if np.any(s_free < lo[free] - slack[free]) or np.any(s_free > hi[free] + slack[free]):
-                continue
-            s[free] = np.clip(s_free, lo[free], hi[free])
-        cost = float(np.sum((a @ s - b) ** 2))
-        if cost < best_cost:
-            best, best_cost = s, cost
-    assert best is not None  # the all-bounds patterns (vertices) are always feasible
+    scale = max(1.0, float(np.max(np.abs(b))))
+    b_scaled = b / scale
+    # A huge b may overflow the free solves: such candidates are non-finite and skipped.
+    with np.errstate(over="ignore", invalid="ignore"):
+        interior = np.linalg.solve(a, b)
+        if (
+            np.all(np.isfinite(interior))
+            and np.all(interior >= lo - slack)
+            and np.all(interior <= hi + slack)
+        ):
+            return np.clip(interior, lo, hi)  # the unconstrained minimum is feasible
+        best, best_cost = None, math.inf
+        for pattern in itertools.product((0, 1, 2), repeat=3):  # 0 free, 1 at lo, 2 at hi
+            s = np.where(np.array(pattern) == 1, lo, hi).astype(float)
+            free = [i for i, p in enumerate(pattern) if p == 0]
+            if free:
+                fixed = [i for i, p in enumerate(pattern) if p != 0]
+                rhs = b - a[:, fixed] @ s[fixed]
+                if len(free) == 3:
+                    s_free = np.linalg.solve(a, rhs)
+                else:
+                    s_free = np.linalg.lstsq(a[:, free], rhs, rcond=None)[0]
+                if (
+                    not np.all(np.isfinite(s_free))
+                    or np.any(s_free < lo[free] - slack[free])
+                    or np.any(s_free > hi[free] + slack[free])
+                ):
+                    continue
+                s[free] = np.clip(s_free, lo[free], hi[free])
+            # (|a s - b|^2 - |b|^2) / scale: same order as the distance, |a s| is bounded
+            achieved = a @ s
+            cost = float(achieved @ achieved / scale - 2.0 * b_scaled @ achieved)
+            if math.isfinite(cost) and (best is None or cost < best_cost):
+                best, best_cost = s, cost
+    if best is None:
+        raise ValueError(f"no finite projection of the requested inertia {b.tolist()}")
     return best
 
 
@@ -96,7 +118,8 @@ def _describe(model: RobotModel, requested: NDArray[np.float64], radii: NDArray[
     reasons = []
     if np.any(requested <= 0.0):
         reasons.append("non-positive moment requested")
-    unconstrained = np.linalg.solve(inertia_map(model), requested)
+    with np.errstate(over="ignore", invalid="ignore"):  # only its signs are used
+        unconstrained = np.linalg.solve(inertia_map(model), requested)
     if np.any(unconstrained < 0.0):
         names = ", ".join(AXES[i] for i in np.flatnonzero(unconstrained < 0.0))
         reasons.append(f"violates a triangle inequality of the principal moments ({names}^2 < 0)")
@@ -127,8 +150,10 @@ def project_inertia(model: RobotModel, requested_inertia_kg_m2: ArrayLike) -> Pr
     radii = np.sqrt(s)
     achieved = principal_inertia(model, radii)
     saturation = achieved - requested
-    tolerance = SATURATION_RELATIVE_TOLERANCE * max(1.0, float(np.linalg.norm(requested)))
-    saturated = bool(np.linalg.norm(saturation) > tolerance)
+    # |saturation| > tol * max(1, |requested|), both sides divided by k (no overflow)
+    k = max(1.0, float(np.max(np.abs(requested))))
+    tolerance = SATURATION_RELATIVE_TOLERANCE * max(1.0 / k, float(np.linalg.norm(requested / k)))
+    saturated = bool(np.linalg.norm(saturation / k) > tolerance)
     reason = _describe(model, requested, radii) if saturated else "reachable"
     return ProjectionResult(
         inertia_kg_m2=achieved,

@@ -204,7 +204,7 @@ class ShapeKinematics:
         px = [half_tether, 0.0, 0.0, 0.0, 0.0, -half_tether, 0.0, 0.0, 0.0, 0.0]
         py = [0.0] * 10
         pz = [0.0] * 10
-        if not moving:
+        if qd is None or not moving:
             for k, i, sg, uy, uz, wy, wz in self.limbs:
                 q1, q2 = q[k], q[k + 1]
                 q23 = q2 + q[k + 2]
@@ -215,7 +215,6 @@ class ShapeKinematics:
                 py[i] = uy * p_u + wy * p_w
                 pz[i] = uz * p_u + wz * p_w
             return self._about_com(px, py, pz, None)
-        assert qd is not None
         if qdd is None:
             qdd = (0.0,) * 25
         vb, ab = 0.5 * qd[24], 0.5 * qdd[24]
