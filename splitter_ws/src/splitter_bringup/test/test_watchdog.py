@@ -30,6 +30,8 @@ def test_lockstep_names_the_first_node_of_the_data_path_that_did_not_answer() ->
     assert dog.check(2.6)[0].node == SIMULATOR  # every node answered: the simulator stalls
     answered(dog, 15, 2.7, SIMULATOR)  # between ticks the state counts as progress
     assert dog.check(4.0) == []
+    answered(dog, 10**12, 4.1, SIMULATOR, MPC)  # a corrupt stamp far ahead is no progress
+    assert dog.stamp_ns(SIMULATOR) == 15 * MS and dog.stamp_ns(MPC) == 10 * MS
 
 
 def test_real_time_reports_each_silent_node_once_until_it_publishes_again() -> None:

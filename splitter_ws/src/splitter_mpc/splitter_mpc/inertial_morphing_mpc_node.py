@@ -177,6 +177,11 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
         raise InvalidParameterError(f"parameters (horizon/dt_s/periods/solver): {exc}") from exc
 
 
+def _check_frame(frame_id: str, expected: str) -> None:
+    if frame_id != expected:
+        raise MessageValidationError(f"header.frame_id: expected {expected!r}, got {frame_id!r}")
+
+
 class InertialMorphingMpcNode(Node):
     """Answers each control tick's imu + inertia with an inertia setpoint."""
 
@@ -259,6 +264,7 @@ class InertialMorphingMpcNode(Node):
 
     def _on_imu(self, msg: Imu) -> None:
         try:
+            _check_frame(msg.header.frame_id, names.BASE_FRAME)
             sample = imu_from_msg(msg)
             if np.max(np.abs(sample.angular_velocity_rad_s)) > MAX_RATE_RAD_S:
                 raise MessageValidationError(
@@ -285,6 +291,10 @@ class InertialMorphingMpcNode(Node):
 
     def _on_w_ref(self, msg: TwistStamped) -> None:
         try:
+            _check_frame(msg.header.frame_id, names.BASE_FRAME)
+            linear = msg.twist.linear
+            if (linear.x, linear.y, linear.z) != (0.0, 0.0, 0.0):  # NaN compares unequal too
+                raise MessageValidationError("twist.linear: a rate reference has none")
             w_ref = twist_from_msg(msg)
             if np.max(np.abs(w_ref[1])) > MAX_RATE_RAD_S:
                 raise MessageValidationError("twist.angular: above the rate limit")
@@ -298,6 +308,7 @@ class InertialMorphingMpcNode(Node):
 
     def _on_q_ref(self, msg: PoseStamped) -> None:
         try:
+            _check_frame(msg.header.frame_id, names.WORLD_FRAME)
             t_ns, q, _ = pose_from_msg(msg)
             self._stamps.check(names.ATTITUDE_REFERENCE_POSE, t_ns, self._clock_ns())
         except MessageValidationError as exc:

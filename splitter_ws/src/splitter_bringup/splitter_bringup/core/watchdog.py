@@ -40,6 +40,7 @@ PROGRESS_TOPICS = {
 # what each node needs, stamped t, before it can answer t (data-path order)
 UPSTREAM = {GAIT: (SIMULATOR,), MPC: (SIMULATOR,), ALLOCATOR: (MPC,)}
 DEFAULT_STALL_TIMEOUT_S = 10.0  # [s] wall
+MAX_LEAD_NS = 1_000_000_000  # [ns] a stamp further ahead of the simulator's is corrupt
 
 
 @dataclass(frozen=True)
@@ -84,8 +85,15 @@ class GraphWatchdog:
         self._progress = {n: _Progress() for n in self.nodes}
 
     def on_output(self, node: str, stamp_ns: int, wall_s: float) -> None:
-        """``node`` published a message stamped ``stamp_ns`` on its progress topic."""
+        """``node`` published a message stamped ``stamp_ns`` on its progress topic.
+
+        A stamp more than :data:`MAX_LEAD_NS` ahead of the simulator's latest (or, for
+        the simulator, of its own) is corrupt, not progress: ignored.
+        """
         progress = self._progress[node]
+        reference = self._progress[SIMULATOR].stamp_ns
+        if reference >= 0 and stamp_ns > reference + MAX_LEAD_NS:
+            return
         if node == SIMULATOR and progress.stamp_ns < 0:
             self._started_wall_s = float(wall_s)
         if stamp_ns > progress.stamp_ns:
