@@ -161,12 +161,11 @@ def garbage_message(topic: str, kind: str, now_ns: int, rng: np.random.Generator
 class GarbageNode(Node):
     """Publishes garbage on :data:`INPUT_TOPICS` at ``rate_hz`` each while ``active``."""
 
-    def __init__(self, rate_hz: float, seed: int = 0, **kwargs) -> None:
+    def __init__(self, rate_hz: float, watch: OutputWatch, seed: int = 0, **kwargs) -> None:
         super().__init__("garbage", **kwargs)
         self.rng = np.random.default_rng(seed)
-        self.active = False
-        self.now_ns = 0  # the latest simulated time seen (OutputWatch sets it)
-        self.payloads: set[bytes] = set()
+        self.active = True
+        self.watch = watch  # its payloads: what was sent; its now_ns: the simulated time
         self.sent = 0
         self._garbage_publishers = {
             topic: self.create_publisher(
@@ -183,8 +182,8 @@ class GarbageNode(Node):
             return
         for topic, publisher in self._garbage_publishers.items():
             kind = str(self.rng.choice(LATCHED_KINDS if topic in LATCHED_TOPICS else KINDS))
-            payload = serialize_message(garbage_message(topic, kind, self.now_ns, self.rng))
-            self.payloads.add(payload)
+            payload = serialize_message(garbage_message(topic, kind, self.watch.now_ns, self.rng))
+            self.watch.payloads.add(payload)
             publisher.publish(payload)
             self.sent += 1
 
@@ -195,15 +194,17 @@ class OutputWatch:
 
     outputs: dict[str, int] = field(default_factory=dict)
     non_finite: list[str] = field(default_factory=list)
+    payloads: set[bytes] = field(default_factory=set)  # the garbage sent
+    now_ns: int = 0  # [ns] the latest simulated time a state carried
     last_w: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (t [s], w [rad/s])
 
 
 class WatchNode(Node):
     """Receives every message on :data:`INPUT_TOPICS` (raw) and checks the nodes' ones."""
 
-    def __init__(self, garbage: GarbageNode, watch: OutputWatch, **kwargs) -> None:
+    def __init__(self, watch: OutputWatch, **kwargs) -> None:
         super().__init__("garbage_watch", **kwargs)
-        self._garbage, self._watch = garbage, watch
+        self._watch = watch
         for topic in INPUT_TOPICS:
             self.create_subscription(
                 TOPIC_MESSAGE_CLASSES[topic],
@@ -214,7 +215,7 @@ class WatchNode(Node):
             )
 
     def _on_message(self, topic: str, payload: bytes) -> None:
-        if payload in self._garbage.payloads:
+        if payload in self._watch.payloads:
             return
         msg = deserialize_message(payload, TOPIC_MESSAGE_CLASSES[topic])
         self._watch.outputs[topic] = self._watch.outputs.get(topic, 0) + 1
@@ -223,7 +224,7 @@ class WatchNode(Node):
             self._watch.non_finite.append(f"{topic}: {', '.join(bad)}")
         if topic == names.IMU:
             t_ns = stamp_from_msg(msg.header.stamp)
-            self._garbage.now_ns = max(self._garbage.now_ns, t_ns)
+            self._watch.now_ns = max(self._watch.now_ns, t_ns)
             w = msg.angular_velocity
             self._watch.last_w.append((t_ns * 1e-9, np.array([w.x, w.y, w.z])))
 
@@ -261,24 +262,26 @@ def run_with_garbage(
     apply_ros_environment(domain_id=domain_id)
     context = Context()
     rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    garbage = GarbageNode(rate_hz, seed, context=context)
     watch = OutputWatch()
-    watcher = WatchNode(garbage, watch, context=context)
+    watcher = WatchNode(watch, context=context)
     executor = SingleThreadedExecutor(context=context)
-    executor.add_node(garbage)
     executor.add_node(watcher)
     window = {"start": math.nan, "end": math.nan}
     stop = threading.Event()
+    made: list[GarbageNode] = []
 
     def spin() -> None:
+        # The garbage node (publishers on the nodes' own topics) comes only once the
+        # simulation runs: the simulator's start-up waits for those topics' publishers.
         while not stop.is_set():
             executor.spin_once(timeout_sec=0.05)
             now = time.monotonic()
-            if not garbage.active and math.isnan(window["start"]):
-                if garbage.now_ns >= start_after_s * 1e9:
-                    garbage.active, window["start"] = True, now
-            elif garbage.active and now - window["start"] >= garbage_s:
-                garbage.active, window["end"] = False, now
+            if not made and watch.now_ns >= start_after_s * 1e9:
+                made.append(GarbageNode(rate_hz, watch, seed, context=context))
+                executor.add_node(made[0])
+                window["start"] = now
+            elif made and made[0].active and now - window["start"] >= garbage_s:
+                made[0].active, window["end"] = False, now
 
     thread = threading.Thread(target=spin, name="garbage", daemon=True)
     thread.start()
@@ -293,17 +296,16 @@ def run_with_garbage(
             on_progress=on_progress,
         )
     finally:
-        garbage.active = False
         stop.set()
         thread.join()
-        garbage.destroy_node()
-        watcher.destroy_node()
+        for node in (*made, watcher):
+            node.destroy_node()
         rclpy.try_shutdown(context=context)
     end = window["end"] if not math.isnan(window["end"]) else time.monotonic()
     last = [w for t, w in watch.last_w if t >= watch.last_w[-1][0] - 1.0] if watch.last_w else []
     return GarbageReport(
         launch=result,
-        garbage_sent=garbage.sent,
+        garbage_sent=made[0].sent if made else 0,
         garbage_s=0.0 if math.isnan(window["start"]) else end - window["start"],
         outputs=dict(watch.outputs),
         non_finite=tuple(watch.non_finite),
