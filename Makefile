@@ -8,7 +8,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.splitter-installed
-PACKAGES := splitter_msgs_py splitter_sim splitter_mpc splitter_ik splitter_bringup
+PACKAGES := splitter_msgs_py splitter_model splitter_sim splitter_mpc splitter_ik splitter_bringup
 PKG_DIRS := $(addprefix splitter_ws/src/,$(PACKAGES))
 PKG_SETUP := $(foreach p,$(PKG_DIRS),$(p)/setup.py $(p)/setup.cfg $(p)/package.xml)
 OUT ?= runs/lunar_jumping
@@ -40,6 +40,7 @@ install: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
 	$(BIN)/hadolint docker/Dockerfile
 
 test: lint

@@ -19,11 +19,11 @@ import rclpy
 from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.inprocess import GraphRecord, clock_reached, start_graph
+from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.gait import momentum_aligned_attitude
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
-from splitter_sim.core.model import RobotModel
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 # Wall-clock solve times differ between runs by nature; everything else must not.

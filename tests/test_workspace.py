@@ -51,7 +51,7 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
         check=False,
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert "5 packages finished" in result.stdout
+    assert "6 packages finished" in result.stdout
     return base / "install"
 
 
@@ -60,7 +60,13 @@ def test_colcon_installs_data_files(colcon_install: Path) -> None:
     assert (site / "splitter_bringup/scenarios/spin_stabilization.yaml").is_file()
     dds = next(colcon_install.glob("splitter_msgs_py/lib/python3*/site-packages"))
     assert (dds / "splitter_msgs_py/dds/fastdds_loopback.xml").is_file()
-    for package in ("splitter_msgs_py", "splitter_sim", "splitter_mpc", "splitter_ik"):
+    for package in (
+        "splitter_msgs_py",
+        "splitter_model",
+        "splitter_sim",
+        "splitter_mpc",
+        "splitter_ik",
+    ):
         marker = colcon_install / package / "share/ament_index/resource_index/packages" / package
         assert marker.exists(), marker
 

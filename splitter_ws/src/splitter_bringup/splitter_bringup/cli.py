@@ -26,6 +26,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
     "bench": ("splitter_bringup.commands.bench", "benchmarks that print figures (sim, mpc, bag)"),
     "bag": ("splitter_msgs_py.bag_cli", "bag tools: info, recover, play, record"),
     "plot": ("splitter_bringup.commands.plot", "plot a recorded bag as the paper's figures"),
+    "animate": (
+        "splitter_bringup.commands.animate",
+        "render a recorded bag's flight in 3D as an mp4 or gif",
+    ),
     "replay": (
         "splitter_bringup.commands.replay",
         "re-run the MPC on a recorded bag's inputs and compare its setpoints",
@@ -34,7 +38,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
         "splitter_bringup.commands.build_mpc",
         "compile and cache the MPC solvers the scenarios fly",
     ),
-    "actuator": ("splitter_ik.actuator_cli", "actuator sizing against the paper's numbers"),
+    "actuator": (
+        "splitter_bringup.commands.actuator",
+        "actuator sizing against the paper's numbers",
+    ),
 }
 
 

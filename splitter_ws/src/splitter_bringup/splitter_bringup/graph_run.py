@@ -12,10 +12,10 @@ import logging
 import sys
 from pathlib import Path
 
-from splitter_bringup.core.bag_series import read_run_series
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.core.series import RunSeries
 from splitter_bringup.launcher import launch
+from splitter_bringup.run_bag import read_run_series
 
 LOG = logging.getLogger(__name__)
 

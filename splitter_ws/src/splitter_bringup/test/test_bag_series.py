@@ -1,8 +1,4 @@
-"""A bag read back into a RunSeries (splitter_bringup.core.bag_series) and `splitter plot`.
-
-Lives with the bag tests because it checks what the recorder's bags hold; it
-imports splitter_bringup, which depends on this package, never the reverse.
-"""
+"""A bag read back into a RunSeries (core.bag_series, run_bag) and `splitter plot`."""
 
 from __future__ import annotations
 
@@ -14,13 +10,13 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 
+from splitter_bringup.core import bag_series
+from splitter_bringup.run_bag import read_run_series
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 from splitter_msgs_py.bag import BagWriter, WriterOptions
-
-bag_series = pytest.importorskip("splitter_bringup.core.bag_series")
-from splitter_sim.core.kinematics import joint_positions_from_radii  # noqa: E402
-from splitter_sim.core.model import RobotModel  # noqa: E402
 
 STEP_NS = 5_000_000  # [ns] state rate 200 Hz
 N = 200  # 1 s
@@ -93,7 +89,7 @@ def test_pure_alignment_helpers() -> None:
 
 
 def test_bag_reads_back_into_an_aligned_run_series(run_bag: Path) -> None:
-    series = bag_series.read_run_series(run_bag)
+    series = read_run_series(run_bag)
     assert len(series) == N  # the stray IMU stamp is not a sample
     t = series.t_s
     assert np.allclose(np.diff(t), STEP_NS * 1e-9)
@@ -123,7 +119,7 @@ def test_missing_state_topic_is_named(tmp_path: Path) -> None:
             names.IMU, serialize_message(cv.imu_to_msg(0, [1, 0, 0, 0], [0] * 3, [0] * 3)), 0, 0
         )
     with pytest.raises(bag_series.BagSeriesError, match=names.ODOM):
-        bag_series.read_run_series(bag_dir)
+        read_run_series(bag_dir)
 
 
 def test_plot_command_writes_the_figures(run_bag: Path, tmp_path: Path, capsys) -> None:

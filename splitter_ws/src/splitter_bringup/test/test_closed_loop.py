@@ -20,11 +20,11 @@ import pytest
 from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
 from splitter_bringup.core.metrics import attitude_reference_series, flight_summary
 from splitter_bringup.core.scenario import load_scenario
+from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.gait import rotation_matrix
 from splitter_mpc.core.mpc import MpcSettings
 from splitter_mpc.core.solvers import SolverOptions
-from splitter_sim.core.model import RobotModel
 
 pytestmark = pytest.mark.slow
 MODEL = RobotModel()

@@ -19,13 +19,13 @@ from splitter_bringup.core.metrics import (
 )
 from splitter_bringup.core.scenario import PaperFinding
 from splitter_bringup.core.series import RunSeries
+from splitter_model.model import STANDARD_GRAVITY
 from splitter_mpc.core.gait import (
     GaitConfig,
     GaitPhaseMachine,
     momentum_aligned_attitude,
     propagate_attitude,
 )
-from splitter_sim.core.model import STANDARD_GRAVITY
 
 
 def series(t, w, q=None, inertia=(0.48, 141.36, 141.36), radii=(2.8, 0.2, 0.2)) -> RunSeries:

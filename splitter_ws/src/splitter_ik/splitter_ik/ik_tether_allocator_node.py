@@ -57,6 +57,7 @@ from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MAX_STAMP_LEAD_NS,
@@ -79,7 +80,6 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 NODE_NAME = "ik_tether_allocator"
 STATUS_NAME = f"{NODE_NAME}: allocation"

@@ -9,9 +9,9 @@ import pytest
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.tether import hemi_mass_kg
-from splitter_sim.core.actuators import actuator_limits
-from splitter_sim.core.kinematics import joint_positions_from_radii, radii_from_joint_positions
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+from splitter_model.actuators import actuator_limits
+from splitter_model.kinematics import joint_positions_from_radii, radii_from_joint_positions
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
 DT = 0.01

@@ -16,12 +16,12 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.ik_tether_allocator_node import IkTetherAllocatorNode
+from splitter_model.kinematics import radii_from_joint_positions
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import qos_for
-from splitter_sim.core.kinematics import radii_from_joint_positions
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
 TICK_NS = 10_000_000

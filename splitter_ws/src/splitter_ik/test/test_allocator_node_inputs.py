@@ -26,10 +26,10 @@ from sensor_msgs.msg import Imu
 
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_ik.ik_tether_allocator_node import MAX_BODY_RATE_RAD_S, IkTetherAllocatorNode
+from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import rejection_counts
-from splitter_sim.core.model import RobotModel, principal_inertia
 
 # An overflow inside a callback means an implausible number got past validation.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")

@@ -17,8 +17,7 @@ from splitter_ik.core.radial_kinematics import (
     radial_hip_pitch,
     radius_from_knee,
 )
-from splitter_msgs_py import names
-from splitter_sim.core.kinematics import (
+from splitter_model.kinematics import (
     joint_positions_from_radii,
     limb_forward_kinematics,
     limb_inverse_kinematics,
@@ -26,7 +25,8 @@ from splitter_sim.core.kinematics import (
     radial_limb_joint_angles,
     radii_from_joint_positions,
 )
-from splitter_sim.core.model import RobotModel
+from splitter_model.model import RobotModel
+from splitter_msgs_py import names
 
 MODEL = RobotModel()
 R_MIN, R_MAX = MODEL.radii_min_m, MODEL.radii_max_m

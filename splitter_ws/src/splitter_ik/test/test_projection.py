@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from scipy.optimize import lsq_linear, minimize
 
 from splitter_ik.core.projection import inertia_map, project_inertia, reachable_inertia_bounds
-from splitter_sim.core.model import RobotModel, principal_inertia, radii_from_inertia
+from splitter_model.model import RobotModel, principal_inertia, radii_from_inertia
 
 MODEL = RobotModel()
 R_MIN, R_MAX = MODEL.radii_min_m, MODEL.radii_max_m

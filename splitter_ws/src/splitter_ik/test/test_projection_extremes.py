@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from splitter_ik.core.projection import inertia_map, project_inertia, reachable_inertia_bounds
-from splitter_sim.core.model import RobotModel
+from splitter_model.model import RobotModel
 
 # An overflow inside the projection would be a number it does not handle.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")

@@ -10,7 +10,7 @@ from splitter_ik.core.tether import (
     max_taut_radius_acceleration,
     reeling_tether_tension,
 )
-from splitter_sim.core.model import (
+from splitter_model.model import (
     RobotModel,
     principal_inertia,
     tether_tension,

@@ -30,6 +30,7 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
+from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES, MpcWeights
@@ -55,7 +56,6 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
-from splitter_sim.core.model import RobotModel
 
 NODE_NAME = "inertial_morphing_mpc"
 MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates

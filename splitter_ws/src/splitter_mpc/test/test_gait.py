@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from splitter_bringup.core.scenario import load_scenario
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.gait import (
     ANTIPARALLEL_TOLERANCE,
     GaitConfig,
@@ -20,7 +19,6 @@ from splitter_mpc.core.gait import (
     attitude_reference_at_stamp,
     gait_config_from_parameters,
     jump_plan_from_arrays,
-    jump_plan_parameters,
     jump_wrench,
     momentum_aligned_attitude,
     propagate_attitude,
@@ -28,7 +26,6 @@ from splitter_mpc.core.gait import (
     smallest_rotation,
 )
 from splitter_msgs_py import names
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 TICK_NS = 10_000_000  # [ns] control tick
 MS = 1_000_000  # [ns]
@@ -601,34 +598,6 @@ def test_invalid_config_names_the_field(kwargs: dict, field: str) -> None:
 def test_invalid_plan_arrays_name_the_parameter(arrays: tuple, parameter: str) -> None:
     with pytest.raises(ValueError, match=parameter):
         jump_plan_from_arrays(*arrays)
-
-
-def test_scenario_plan_round_trips_through_parameters() -> None:
-    scenario = load_scenario("lunar_jumping")
-    params = jump_plan_parameters(scenario.jumps)
-    plan = jump_plan_from_arrays(
-        params["jump_times_s"],
-        params["jump_forces_n"],
-        params["jump_durations_s"],
-        params["jump_hemis"],
-    )
-    assert plan == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
-    assert [j.hemi for j in plan] == ["b", "auto"]
-    assert plan[1].time_ns == 5_000_000_000 and plan[0].duration_ns == 600_000_000
-
-
-def test_config_from_the_shipped_parameters_and_a_scenario() -> None:
-    params = yaml.safe_load(CONFIG_FILE.read_text(encoding="utf-8"))
-    params = params["gait_phase_manager"]["ros__parameters"]
-    scenario = load_scenario("lunar_jumping")
-    params.update(jump_plan_parameters(scenario.jumps))
-    params["attitude_reference"] = scenario.controller.attitude_reference
-    config = gait_config_from_parameters(params)
-    assert config.jumps == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
-    assert config.liftoff_debounce_ns == round(params["liftoff_debounce_s"] * 1e9)
-    assert config.landed_dwell_ns == round(params["landed_dwell_s"] * 1e9)
-    assert config.w_ref_rad_s == tuple(params["w_ref_rad_s"])
-    assert gait_config_from_parameters({}) == GaitConfig()
 
 
 @pytest.mark.parametrize(

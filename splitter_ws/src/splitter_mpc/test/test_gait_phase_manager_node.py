@@ -20,10 +20,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from splitter_bringup.core.graph_config import graph_nodes, write_parameter_file
-from splitter_bringup.core.scenario import available_scenarios, load_scenario
 from splitter_mpc.core.gait import (
-    PlannedJump,
     gait_config_from_parameters,
     momentum_aligned_attitude,
     rotation_matrix,
@@ -369,37 +366,5 @@ def test_shipped_params_file_starts_the_node(tmp_path, with_plan: bool) -> None:
                 assert node.get_parameter("use_sim_time").value is True
         finally:
             node.destroy_node()
-    finally:
-        context.try_shutdown()
-
-
-@pytest.mark.parametrize("scenario_name", available_scenarios())
-def test_launcher_parameters_of_every_scenario_start_the_node(
-    ros_context, tmp_path, scenario_name: str
-) -> None:
-    """The launcher's parameters, as overrides (in-process graph) and as a params file.
-
-    Scenarios without jumps give empty lists, which arrive untyped: they mean no jump.
-    """
-    scenario = load_scenario(scenario_name)
-    launch = next(
-        n for n in graph_nodes(scenario) if n.node_class.endswith(":GaitPhaseManagerNode")
-    )
-    expected = tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
-    overrides = [Parameter(k, value=v) for k, v in launch.parameters.items()]
-    node = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
-    try:
-        assert node.config.jumps == expected
-        assert node.config.attitude_reference == scenario.controller.attitude_reference
-    finally:
-        node.destroy_node()
-    params_file = write_parameter_file(launch, tmp_path)
-    context = rclpy.Context()
-    rclpy.init(context=context, args=["--ros-args", "--params-file", str(params_file)])
-    try:
-        node = GaitPhaseManagerNode(context=context)
-        assert node.config.jumps == expected
-        assert node.get_parameter("use_sim_time").value is True
-        node.destroy_node()
     finally:
         context.try_shutdown()

@@ -18,6 +18,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.inertial_morphing_mpc_node import InertialMorphingMpcNode
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
@@ -31,7 +32,6 @@ from splitter_msgs_py.conversions import (
 )
 from splitter_msgs_py.parameters import InvalidParameterError, rejection_counts
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MS = 1_000_000  # [ns]
 I0 = principal_inertia(RobotModel(), PAPER_INITIAL_RADII_M)

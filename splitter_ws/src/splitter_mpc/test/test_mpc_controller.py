@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
 from splitter_mpc.core.solvers import SolverOptions
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
 MS = 1_000_000  # [ns]

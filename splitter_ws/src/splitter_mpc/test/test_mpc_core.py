@@ -8,6 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.controller import ControllerConfig
 from splitter_mpc.core.gait import quaternion_multiply, rotation_matrix
 from splitter_mpc.core.limits import (
@@ -19,7 +20,6 @@ from splitter_mpc.core.limits import (
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function
 from splitter_mpc.core.solvers import OBJECTIVE_SCALE_MIN, SolverOptions
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
 DT = 0.01  # [s]

@@ -10,6 +10,7 @@ from functools import partial
 import numpy as np
 import pytest
 
+from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, build_backend
 from splitter_mpc.core.ocp import MpcWeights
@@ -23,7 +24,6 @@ from splitter_mpc.core.solver_worker import (
     WorkerStartError,
 )
 from splitter_mpc.core.solvers import SolverOptions
-from splitter_sim.core.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
 MODEL = RobotModel()
 MS = 1_000_000  # [ns]

@@ -27,8 +27,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import GRAVITY_PRESETS, RobotModel
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import GRAVITY_PRESETS, RobotModel
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 LOG = logging.getLogger(__name__)

@@ -63,6 +63,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
+from splitter_model.model import RobotModel, gravity_from_name
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
@@ -89,7 +90,6 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
-from splitter_sim.core.model import RobotModel, gravity_from_name
 from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
 
 NODE_NAME = "simulator"

@@ -14,12 +14,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import qos_for
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import RobotModel
 from splitter_sim.simulator_node import SimulatorNode
 
 DT_NS = 5_000_000

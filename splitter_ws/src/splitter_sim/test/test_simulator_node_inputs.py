@@ -26,11 +26,11 @@ from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import rejection_counts
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import RobotModel
 from splitter_sim.simulator_node import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM, SimulatorNode
 
 # An overflow inside a callback means an implausible number got past validation.

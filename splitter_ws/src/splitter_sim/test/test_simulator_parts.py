@@ -9,26 +9,26 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_bringup.core.scenario import load_scenario
-from splitter_sim.core import actuators
-from splitter_sim.core.contact import ground_contact_force
-from splitter_sim.core.kinematics import (
+from splitter_model.actuators import actuator_limits
+from splitter_model.kinematics import (
     joint_positions_from_radii,
     limb_offsets_from_joint_positions,
     radii_from_joint_positions,
 )
-from splitter_sim.core.model import (
+from splitter_model.model import (
     RobotModel,
     center_of_mass,
     inertia_tensor,
     lumped_mass_positions,
     principal_inertia,
 )
+from splitter_sim.core import actuators
+from splitter_sim.core.contact import ground_contact_force
 from splitter_sim.core.shape import ShapeKinematics
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODEL = RobotModel()
-LIMITS = actuators.actuator_limits(MODEL)
+LIMITS = actuator_limits(MODEL)
 DT = 0.005  # [s]
 
 
@@ -246,22 +246,3 @@ def test_initial_state_names_the_invalid_field(field: str, value: object) -> Non
 def test_unreachable_initial_radii_are_refused() -> None:
     with pytest.raises(ValueError, match="radii_m"):
         Simulator(MODEL, SimConfig(), InitialState(radii_m=(2.8, 0.6, 0.2)))
-
-
-def test_from_scenario_and_integer_time() -> None:
-    scenario = load_scenario("orientation_tracking")
-    sim = Simulator.from_scenario(scenario)
-    s = sim.state()
-    np.testing.assert_allclose(s.angular_velocity_rad_s, [0.5, -0.5, 0.5])
-    # scipy "xyz" (extrinsic) Euler angles [5, 5, 15] deg
-    w, x, y, z = s.orientation_wxyz
-    from scipy.spatial.transform import Rotation
-
-    np.testing.assert_allclose(
-        Rotation.from_quat([x, y, z, w]).as_euler("xyz", degrees=True), [5.0, 5.0, 15.0]
-    )
-    assert sim.config.gravity_m_s2 == 0.0 and not sim.config.ground_contact
-    for _ in range(1000):
-        sim.step()
-    assert sim.time_ns == 1000 * 5_000_000  # exact integer nanoseconds, no drift
-    assert sim.state().t_ns == sim.time_ns

@@ -15,8 +15,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import GRAVITY_PRESETS, RobotModel
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import GRAVITY_PRESETS, RobotModel
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODEL = RobotModel()

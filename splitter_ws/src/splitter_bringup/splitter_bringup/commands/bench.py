@@ -8,7 +8,10 @@ from splitter_bringup.cli import dispatch
 
 BENCHMARKS = {
     "sim": ("splitter_sim.bench", "real-time factor of the bare simulator"),
-    "mpc": ("splitter_mpc.bench", "MPC solve times against a plain Opti+IPOPT baseline"),
+    "mpc": (
+        "splitter_bringup.commands.bench_mpc",
+        "MPC solve times against a plain Opti+IPOPT baseline",
+    ),
     "bag": ("splitter_msgs_py.bench", "sustained bag write rate without loss"),
 }
 

@@ -63,8 +63,8 @@ def build(scenario: Scenario, solver: str) -> float:
     from dataclasses import replace
 
     from splitter_bringup.core.closed_loop import controller_config
+    from splitter_model.model import RobotModel
     from splitter_mpc.core.mpc import InertialMorphingMpc
-    from splitter_sim.core.model import RobotModel
 
     settings = replace(controller_config(scenario).mpc, solver=solver)
     # in this process: the compiled code lands in the cache every worker loads it from

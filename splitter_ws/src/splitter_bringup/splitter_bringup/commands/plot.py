@@ -112,8 +112,9 @@ def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
 
 
 def main(args: argparse.Namespace) -> int:
-    from splitter_bringup.core.bag_series import BagSeriesError, read_run_series
+    from splitter_bringup.core.bag_series import BagSeriesError
     from splitter_bringup.core.plots import plot_flight, plot_quaternion_map
+    from splitter_bringup.run_bag import read_run_series
     from splitter_msgs_py.bag.metadata import MetadataError
 
     try:

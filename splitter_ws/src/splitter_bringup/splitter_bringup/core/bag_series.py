@@ -1,9 +1,9 @@
 """A recorded bag read back into a :class:`RunSeries` (the same container the library loop fills).
 
 Alignment is pure numpy (:func:`common_stamps`, :func:`values_at`,
-:func:`forward_fill`); :func:`read_run_series` decodes the bag with
-``rclpy.serialization`` and :mod:`splitter_msgs_py.conversions`, imported when
-called so that this module stays importable without ROS.
+:func:`forward_fill`) and :func:`series_from_samples`; ROS-free. Decoding a
+bag into samples needs rclpy: :mod:`splitter_bringup.run_bag`
+(``read_run_series``).
 
 * State topics (IMU, odometry, inertia, joint states; 200 Hz) are aligned on
   their ``header.stamp``: a sample exists at every stamp all four carry.
@@ -15,24 +15,23 @@ called so that this module stays importable without ROS.
   missed) are forward-filled into ``extras["mpc_failures"]`` and
   ``extras["mpc_deadline_misses"]``, as the library loop records them.
 * Radii come from the measured joint positions
-  (:func:`splitter_sim.core.kinematics.radii_from_joint_positions`).
+  (:func:`splitter_model.kinematics.radii_from_joint_positions`).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_bringup.core.series import RunSeries
+from splitter_model.kinematics import radii_from_joint_positions
+from splitter_model.model import RobotModel
 from splitter_msgs_py import names
-from splitter_sim.core.kinematics import radii_from_joint_positions
-from splitter_sim.core.model import RobotModel
 
 _log = logging.getLogger(__name__)
 _NS_PER_S = 1_000_000_000
@@ -127,71 +126,6 @@ class TopicSamples:
         return np.asarray(self.fields[key], dtype=float)
 
 
-def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
-    from splitter_msgs_py import conversions as cv
-
-    def imu(msg: Any, _: int, out: TopicSamples) -> None:
-        s = cv.imu_from_msg(msg)
-        out.add(s.t_ns, w=s.angular_velocity_rad_s, q=s.orientation_wxyz)
-
-    def odom(msg: Any, _: int, out: TopicSamples) -> None:
-        s = cv.odom_from_msg(msg)
-        out.add(s.t_ns, p=s.position_m, q=s.orientation_wxyz, v=s.velocity_world_m_s)
-
-    def vector(msg: Any, _: int, out: TopicSamples) -> None:
-        s = cv.vector3_from_msg(msg)
-        out.add(s.t_ns, v=s.vector)
-
-    def joints(msg: Any, _: int, out: TopicSamples) -> None:
-        s = cv.joint_state_from_msg(msg)
-        out.add(s.t_ns, q=s.position)
-
-    def phase(msg: Any, log_ns: int, out: TopicSamples) -> None:
-        out.add(log_ns, phase=str(msg.data))
-
-    def jump(msg: Any, _: int, out: TopicSamples) -> None:
-        s = cv.wrench_from_msg(msg)
-        out.add(s.t_ns, f=s.force_n)
-
-    def diagnostics(msg: Any, _: int, out: TopicSamples) -> None:
-        t_ns = cv.stamp_from_msg(msg.header.stamp)
-        for status in cv.diagnostics_from_msg(msg):
-            if status.name.startswith(MPC_DIAGNOSTICS_PREFIX):
-                counts = {k: float(status.values.get(k, np.nan)) for k in MPC_COUNTS}
-                out.add(t_ns, **counts)
-
-    return {
-        names.IMU: imu,
-        names.ODOM: odom,
-        names.INERTIA: vector,
-        names.JOINT_STATES: joints,
-        names.INERTIA_SETPOINT: vector,
-        names.GAIT_PHASE: phase,
-        names.JUMP_COMMAND: jump,
-        names.DIAGNOSTICS: diagnostics,
-    }
-
-
-def decode_bag(bag_dir: Path | str) -> dict[str, TopicSamples]:
-    """Every message of the topics a run series needs, decoded and validated."""
-    from rclpy.serialization import deserialize_message
-
-    from splitter_msgs_py.bag.reader import read_messages
-    from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
-
-    decoders = _decoders()
-    out: dict[str, TopicSamples] = {topic: TopicSamples() for topic in decoders}
-    for m in read_messages(bag_dir, topics=list(decoders)):
-        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[m.topic])
-        try:
-            decoders[m.topic](msg, m.log_time_ns, out[m.topic])
-        except ValueError as exc:
-            raise BagSeriesError(
-                f"{bag_dir}: {m.topic} at log time {m.log_time_ns} ns: {exc}"
-            ) from exc
-    return out
-
-
 def series_from_samples(
     samples: dict[str, TopicSamples],
     model: RobotModel | None = None,
@@ -256,23 +190,3 @@ def series_from_samples(
         jump_force_n=jump_force,
         extras=extras,
     )
-
-
-def read_run_series(
-    bag_dir: Path | str,
-    gravity_m_s2: float | None = None,
-    model: RobotModel | None = None,
-) -> RunSeries:
-    """The run recorded in ``bag_dir``.
-
-    ``gravity_m_s2`` defaults to the bag's ``custom_data['gravity_m_s2']``, else 0.
-    """
-    from splitter_msgs_py.bag.metadata import read_metadata
-
-    if gravity_m_s2 is None:
-        custom = read_metadata(bag_dir).custom_data
-        try:
-            gravity_m_s2 = float(custom.get(GRAVITY_KEY, 0.0))
-        except ValueError as exc:
-            raise BagSeriesError(f"custom_data {GRAVITY_KEY}: {exc}") from exc
-    return series_from_samples(decode_bag(bag_dir), model, gravity_m_s2)

@@ -35,19 +35,20 @@ from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from splitter_bringup.core.graph_config import gait_parameters
 from splitter_bringup.core.scenario import Scenario
 from splitter_bringup.core.series import RunSeries
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.projection import project_inertia
+from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
-from splitter_sim.core.model import RobotModel
-from splitter_sim.core.simulator import Simulator
+from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -63,6 +64,26 @@ def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
     for _ in range(2 * hops):
         q = q / float(np.linalg.norm(q))
     return q
+
+
+def simulator_for(scenario: Scenario, model: RobotModel | None = None) -> Simulator:
+    """The simulator set up as ``scenario`` describes (initial state, step, gravity, ground)."""
+    xyzw = Rotation.from_euler(
+        "xyz", np.asarray(scenario.initial_orientation_euler_deg, dtype=float), degrees=True
+    ).as_quat()
+    initial = InitialState(
+        position_m=scenario.initial_position_m,
+        velocity_m_s=scenario.initial_velocity_m_s,
+        orientation_wxyz=np.roll(xyzw, 1),
+        angular_velocity_rad_s=scenario.initial_angular_velocity_rad_s,
+        radii_m=scenario.initial_radii_m,
+    )
+    config = SimConfig(
+        dt_s=float(scenario.sim_dt_s),
+        gravity_m_s2=float(scenario.gravity_m_s2),
+        ground_contact=bool(scenario.ground_contact),
+    )
+    return Simulator(model or RobotModel(), config, initial)
 
 
 def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> ControllerConfig:
@@ -115,7 +136,7 @@ def run_closed_loop(
                 fail_solves_at_s=fail_solves_at_s,
                 duration_s=duration_s,
             )
-    sim = Simulator.from_scenario(scenario, model)
+    sim = simulator_for(scenario, model)
     gait = GaitPhaseMachine(gait_config_from_parameters(gait_parameters(scenario)))
     # The allocator node starts from the radii of the first measured inertia (projected,
     # its default ``initialize_from_measured_inertia``): the same start here.

@@ -46,8 +46,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_bringup.core.scenario import PaperFinding
 from splitter_bringup.core.series import RunSeries
+from splitter_model.model import STANDARD_GRAVITY
 from splitter_mpc.core.gait import attitude_reference_at_stamp, propagate_attitude
-from splitter_sim.core.model import STANDARD_GRAVITY
 
 FINAL_WINDOW_S = 0.5  # [s]
 SETTLING_BAND = 0.02  # [-] of the w_y change

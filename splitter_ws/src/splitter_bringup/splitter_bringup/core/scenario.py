@@ -22,9 +22,9 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from splitter_model.model import gravity_from_name
 from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
-from splitter_sim.core.model import gravity_from_name
 
 
 class ScenarioError(ValueError):

@@ -40,7 +40,7 @@ from splitter_ik.core.radial_kinematics import (
     hip_pitch_rate_per_knee_rate,
     radius_rate_per_knee_rate,
 )
-from splitter_sim.core.model import RPM_TO_RAD_S, STANDARD_GRAVITY, RobotModel
+from splitter_model.model import RPM_TO_RAD_S, STANDARD_GRAVITY, RobotModel
 
 RELATIVE_TOLERANCE = 0.03  # the acceptance: each number within 3 %
 

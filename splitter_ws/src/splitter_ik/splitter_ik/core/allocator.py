@@ -18,7 +18,7 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    started; when the spin cannot hold the margin even at rest, the tether is held
    (never paid out), taut with the centripetal tension ``M_h r_x w_perp^2``,
 4. turns the radii into the 25 joint positions with
-   ``splitter_sim.core.kinematics.joint_positions_from_radii``.
+   ``splitter_model.kinematics.joint_positions_from_radii``.
 
 An allocation is a point of a piecewise-linear joint trajectory: ``joint_position``
 is where the joints are planned to be at ``t_ns`` (the previous allocation's
@@ -48,8 +48,8 @@ from splitter_ik.core.tether import (
     max_taut_radius_acceleration,
     reeling_tether_tension,
 )
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import RobotModel, principal_inertia
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import RobotModel, principal_inertia
 
 TETHER_JOINT_INDEX = 24
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee

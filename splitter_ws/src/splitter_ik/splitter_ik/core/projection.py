@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_sim.core.model import RobotModel, principal_inertia
+from splitter_model.model import RobotModel, principal_inertia
 
 AXES = ("r_x", "r_y", "r_z")
 # A request within this relative distance of the reachable set counts as reachable

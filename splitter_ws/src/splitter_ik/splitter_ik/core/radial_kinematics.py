@@ -1,7 +1,7 @@
-"""Radial limb kinematics the allocator needs beyond ``splitter_sim.core.kinematics``.
+"""Radial limb kinematics the allocator needs beyond ``splitter_model.kinematics``.
 
 A limb in a *radial* configuration (zero abduction, tip on the limb's outward axis,
-see ``splitter_sim.core.kinematics.radial_limb_joint_angles``) is fully described
+see ``splitter_model.kinematics.radial_limb_joint_angles``) is fully described
 by its knee angle ``k``: the tip radius is ``r(k) = sqrt(l1^2 + l2^2 + 2 l1 l2 cos k)``
 (``RobotModel.limb_reach_m``) and the hip pitch is
 ``q2(k) = -atan2(l2 sin k, l1 + l2 cos k)``. This module gives the inverse
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_sim.core.model import RobotModel
+from splitter_model.model import RobotModel
 
 # Relative slack accepted on a radius at the edge of the knee range (rounding of r(k)).
 _REACH_TOLERANCE = 1e-12

@@ -25,8 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_ik.core.tether import hemi_mass_kg
-from splitter_sim.core.kinematics import limb_forward_kinematics
-from splitter_sim.core.model import (
+from splitter_model.kinematics import limb_forward_kinematics
+from splitter_model.model import (
     MOTOR_OUTPUT_CONTINUOUS_TORQUE_NM,
     MOTOR_OUTPUT_PEAK_TORQUE_NM,
     RobotModel,

@@ -11,7 +11,7 @@ lumped mass of the hemi, body ``m_x`` and limb tips ``m_y``, ``m_z``, sits at
     M_h = m_x + 2 m_y + 2 m_z  (the whole hemi: its limbs ride on its body)
 
 so ``T = M_h (r_x w_perp^2 - r_x'')``: the steady part is
-``splitter_sim.core.model.tether_tension_3d``, reeling adds ``-M_h r_x''``. The
+``splitter_model.model.tether_tension_3d``, reeling adds ``-M_h r_x''``. The
 tether can only pull: it stays taut with at least ``T_min`` while
 ``r_x'' <= r_x w_perp^2 - T_min / M_h``. (The paper's ``T = m_x w_y^2 r_x`` counts
 the body mass alone, a third of the load for its masses; the sign, hence the
@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from splitter_sim.core.model import RobotModel, tether_tension_3d
+from splitter_model.model import RobotModel, tether_tension_3d
 
 
 def hemi_mass_kg(model: RobotModel) -> float:

@@ -17,11 +17,11 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from splitter_model.model import RobotModel
 from splitter_mpc.core.limits import axis_inertia_range, morphing_limits
 from splitter_mpc.core.mpc import MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights, discrete_dynamics, momentum_target
 from splitter_mpc.core.solvers import SolverResult
-from splitter_sim.core.model import RobotModel
 
 
 class OptiBaselineMpc:

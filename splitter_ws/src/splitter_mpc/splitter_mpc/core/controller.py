@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.model import RobotModel
 from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
 from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
-from splitter_sim.core.model import RobotModel
 
 _LOG = logging.getLogger(__name__)
 INACTIVE_PHASES = (GaitPhase.LANDED.value,)

@@ -2,7 +2,7 @@
 
 The paper bounds the MPC with a box ``|dI| <= dI_max``, ``0 < I <= I_max`` and
 leaves both numbers open (section VI.D). Here they are derived from the one
-:class:`~splitter_sim.core.model.RobotModel`, and the MPC also constrains what the
+:class:`~splitter_model.model.RobotModel`, and the MPC also constrains what the
 box cannot express (section VI.D itself notes the bound is "a circle" in radius
 space):
 
@@ -12,7 +12,7 @@ space):
 * radius rates: ``|r_i(I_{k+1}) - r_i(I_k)| <= v_i dt`` with the reel speed for
   ``r_x`` and the slowest radial limb-tip speed for ``r_y``, ``r_z``;
 * tether tension ``T = m_x r_x (w_y^2 + w_z^2) >= T_min`` (taut tether,
-  :func:`splitter_sim.core.model.tether_tension_3d`), as a soft constraint.
+  :func:`splitter_model.model.tether_tension_3d`), as a soft constraint.
 
 The box ``dI_max``, ``[I_min, I_max]`` is kept (the paper's form, cheap simple
 bounds for the solver); it is the hull of the radius constraints above.
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_sim.core.model import RobotModel, principal_inertia
+from splitter_model.model import RobotModel, principal_inertia
 
 # Knee samples used to find the slowest radial tip speed over the knee range.
 _KNEE_SAMPLES = 2001
@@ -36,7 +36,7 @@ _KNEE_SAMPLES = 2001
 def radius_squared_matrix(model: RobotModel) -> NDArray[np.float64]:
     """A (3, 3) with ``(r_x^2, r_y^2, r_z^2) = A (Ixx, Iyy, Izz)`` (paper eq. 3 radicands).
 
-    Inverse of :func:`splitter_sim.core.model.principal_inertia`, which is linear in
+    Inverse of :func:`splitter_model.model.principal_inertia`, which is linear in
     the squared radii. Works for any masses; rows are the closed form's radicands.
     """
     mx, my, mz = model.body_mass_kg, model.limb_mass_y_kg, model.limb_mass_z_kg

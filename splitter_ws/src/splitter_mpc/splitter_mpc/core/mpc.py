@@ -95,6 +95,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.model import RobotModel
 from splitter_mpc.core.limits import MorphingLimits, axis_inertia_range, morphing_limits
 from splitter_mpc.core.ocp import (
     INTEGRATORS,
@@ -121,7 +122,6 @@ from splitter_mpc.core.solvers import (
     SolverResult,
     make_backend,
 )
-from splitter_sim.core.model import RobotModel
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000

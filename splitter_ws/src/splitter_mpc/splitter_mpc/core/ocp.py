@@ -25,7 +25,7 @@ Hardware limits as bounds:
   optimum degenerate for interior-point solvers;
 * tether tension ``(w_y^2 + w_z^2) + sigma >= T_min / (m_x rhat_x,k)`` for k >= 1,
   i.e. ``T = m_x r_x (w_y^2 + w_z^2) >= T_min`` (the paper's ``m_x w_y^2 r_x`` with
-  the z spin of :func:`splitter_sim.core.model.tether_tension_3d`), soft with the
+  the z spin of :func:`splitter_model.model.tether_tension_3d`), soft with the
   slack ``sigma >= 0`` under an exact L1 penalty (zero whenever it can be met).
 
 Discrete dynamics (paper eq. 13-16) with the *physically correct* gyroscopic

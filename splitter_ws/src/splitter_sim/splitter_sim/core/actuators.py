@@ -3,7 +3,7 @@
 The 25 actuated coordinates (``names.JOINT_NAMES`` order: 8 limbs x (hip
 abduction, hip pitch, knee), then the prismatic tether) follow their commands
 as position servos whose velocity and acceleration never exceed the hardware
-limits of :class:`~splitter_sim.core.model.RobotModel` (actuator output speed
+limits of :class:`~splitter_model.model.RobotModel` (actuator output speed
 800 RPM, peak torque over the limb-tip inertia, reel speed and start-up).
 
 Within one simulation step the servo acceleration is constant, so the joint
@@ -17,46 +17,15 @@ the limits, so it arrives exactly, at rest.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_sim.core.model import RobotModel
+from splitter_model.actuators import N_JOINTS, ActuatorLimits
 
-N_JOINTS = 25
-TETHER_INDEX = 24
 # A command's velocity feed-forward extrapolates its position target for at most
 # this long; a stale command then holds position (no drift into a limit).
 COMMAND_EXTRAPOLATION_S = 0.02  # [s] two control periods of 10 ms
 ARRIVAL_TOLERANCE = 1e-12  # [rad or m] / [rad/s or m/s]: snap to the target below this
-
-
-@dataclass(frozen=True)
-class ActuatorLimits:
-    """Per-joint bounds, arrays of length 25 in ``names.JOINT_NAMES`` order."""
-
-    position_min: NDArray[np.float64]  # [rad] / [m] tether
-    position_max: NDArray[np.float64]  # [rad] / [m]
-    speed_max: NDArray[np.float64]  # [rad/s] / [m/s]
-    acceleration_max: NDArray[np.float64]  # [rad/s^2] / [m/s^2]
-
-
-def actuator_limits(model: RobotModel) -> ActuatorLimits:
-    """Joint and tether limits of ``model``."""
-    lo = np.empty(N_JOINTS)
-    hi = np.empty(N_JOINTS)
-    for limb in range(8):
-        k = 3 * limb
-        lo[k], hi[k] = -model.hip_abduction_limit_rad, model.hip_abduction_limit_rad
-        lo[k + 1], hi[k + 1] = -model.hip_pitch_limit_rad, model.hip_pitch_limit_rad
-        lo[k + 2], hi[k + 2] = model.knee_min_rad, model.knee_max_rad
-    lo[TETHER_INDEX], hi[TETHER_INDEX] = model.tether_length_min_m, model.tether_length_max_m
-    speed = np.full(N_JOINTS, model.joint_speed_max_rad_s)
-    speed[TETHER_INDEX] = model.tether_speed_max_m_s
-    accel = np.full(N_JOINTS, model.joint_acceleration_max_rad_s2)
-    accel[TETHER_INDEX] = model.tether_acceleration_max_m_s2
-    return ActuatorLimits(lo, hi, speed, accel)
 
 
 def validate_joint_command(

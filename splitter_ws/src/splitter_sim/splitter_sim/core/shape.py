@@ -8,7 +8,7 @@ rotational dynamics needs: the inertia tensor about the centre of mass (products
 included) and its inverse, the relative angular momentum ``h = sum m r x dr``,
 its rate, ``dI/dt`` and the rate of the relative kinetic energy.
 
-Positions are exactly those of :mod:`splitter_sim.core.kinematics`
+Positions are exactly those of :mod:`splitter_model.kinematics`
 (``limb_offsets_from_joint_positions`` + ``lumped_mass_positions``, then taken
 relative to ``center_of_mass``; the unit tests assert it); the derivatives are
 the analytic time derivatives of the same forward kinematics. This is the hot
@@ -24,8 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from splitter_sim.core.kinematics import limb_frame
-from splitter_sim.core.model import RobotModel
+from splitter_model.kinematics import limb_frame
+from splitter_model.model import RobotModel
 
 N_MASSES = 10
 BODY_INDICES = (0, 5)  # hemi a body, hemi b body
@@ -156,7 +156,7 @@ def sym_inverse(s: Sequence[float]) -> tuple[float, float, float, float, float, 
 class ShapeKinematics:
     """Precomputed constants of the ten-mass forward kinematics of one model.
 
-    The limb frames of :func:`~splitter_sim.core.kinematics.limb_frame` are axis
+    The limb frames of :func:`~splitter_model.kinematics.limb_frame` are axis
     aligned: ``u`` is +-y or +-z, ``v = s x`` and ``w = u x v`` the remaining axis.
     A tip at ``p_u u + p_p (cos q1 v + sin q1 w)`` therefore has x component
     ``s p_p cos q1`` and y, z components from ``p_u`` and ``p_p sin q1``; the

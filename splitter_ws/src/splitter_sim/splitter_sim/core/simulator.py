@@ -30,14 +30,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, actuator_limits
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_sim.core import actuators
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import STANDARD_GRAVITY, RobotModel
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
     angular_velocity,
@@ -46,9 +46,6 @@ from splitter_sim.core.rigid_body import (
     state_derivative,
 )
 from splitter_sim.core.shape import HEMI_OF_MASS, Shape, ShapeKinematics
-
-if TYPE_CHECKING:
-    from splitter_bringup.core.scenario import Scenario
 
 HEMI_BODY_INDEX = (0, 5)  # mass index of each hemi body (a, b)
 HEMI_LABELS = ("a", "b")
@@ -238,17 +235,17 @@ class Simulator:
                 f"[{lo.tolist()}, {hi.tolist()}]"
             )
         self._kin = ShapeKinematics(model)
-        self._limits = actuators.actuator_limits(model)
+        self._limits = actuator_limits(model)
         self._masses = np.array(self._kin.masses)
         self._q = joint_positions_from_radii(model, radii)
         self._q = np.clip(self._q, self._limits.position_min, self._limits.position_max)
-        self._qd = np.zeros(actuators.N_JOINTS)
-        self._qdd = np.zeros(actuators.N_JOINTS)
+        self._qd = np.zeros(N_JOINTS)
+        self._qdd = np.zeros(N_JOINTS)
         self._cmd_q = self._q.copy()
-        self._cmd_qd = np.zeros(actuators.N_JOINTS)
+        self._cmd_qd = np.zeros(N_JOINTS)
         self._cmd_t_ns = 0
         self._settled = True  # joints at rest on a resting target: no servo work
-        self._zero_joints = np.zeros(actuators.N_JOINTS)
+        self._zero_joints = np.zeros(N_JOINTS)
         self._radii_cache: NDArray[np.float64] | None = None
         self._shape = self._kin.evaluate(self._q.tolist())
         w = np.asarray(initial.angular_velocity_rad_s, dtype=float)
@@ -280,28 +277,6 @@ class Simulator:
         self.contact_step_count = 0  # steps integrated with contact sub-steps
 
     # --- construction ------------------------------------------------------------
-    @classmethod
-    def from_scenario(cls, scenario: Scenario, model: RobotModel | None = None) -> Simulator:
-        """Simulator set up as ``scenario`` (a ``splitter_bringup`` Scenario) describes."""
-        from scipy.spatial.transform import Rotation
-
-        xyzw = Rotation.from_euler(
-            "xyz", np.asarray(scenario.initial_orientation_euler_deg, dtype=float), degrees=True
-        ).as_quat()
-        initial = InitialState(
-            position_m=scenario.initial_position_m,
-            velocity_m_s=scenario.initial_velocity_m_s,
-            orientation_wxyz=np.roll(xyzw, 1),
-            angular_velocity_rad_s=scenario.initial_angular_velocity_rad_s,
-            radii_m=scenario.initial_radii_m,
-        )
-        config = SimConfig(
-            dt_s=float(scenario.sim_dt_s),
-            gravity_m_s2=float(scenario.gravity_m_s2),
-            ground_contact=bool(scenario.ground_contact),
-        )
-        return cls(model or RobotModel(), config, initial)
-
     # --- commands ----------------------------------------------------------------
     @property
     def time_ns(self) -> int:
@@ -309,7 +284,7 @@ class Simulator:
         return self._t_ns
 
     @property
-    def joint_limits(self) -> actuators.ActuatorLimits:
+    def joint_limits(self) -> ActuatorLimits:
         """Position, speed and acceleration limits of the 25 actuators."""
         return self._limits
 
@@ -567,7 +542,7 @@ class Simulator:
             )
         r_y = (reach[0] + reach[1] + reach[4] + reach[5]) / 4.0
         r_z = (reach[2] + reach[3] + reach[6] + reach[7]) / 4.0
-        return np.array([0.5 * float(self._q[actuators.TETHER_INDEX]), r_y, r_z])
+        return np.array([0.5 * float(self._q[TETHER_INDEX]), r_y, r_z])
 
 
 _ZERO3 = (0.0, 0.0, 0.0)

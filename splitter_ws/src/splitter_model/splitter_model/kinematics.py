@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_sim.core.model import RobotModel
+from splitter_model.model import RobotModel
 
 _E = np.eye(3)
 # Outward axis u of each limb, in the order of splitter_msgs_py.names.LIMB_AXES.

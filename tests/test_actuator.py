@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from splitter_bringup.commands import actuator as actuator_cli
 from splitter_bringup.core.series import RunSeries
-from splitter_ik import actuator_cli
 from splitter_ik.core.actuator_sizing import (
     PAPER_VALUES,
     JumpAssumptions,
@@ -19,8 +19,8 @@ from splitter_ik.core.actuator_sizing import (
     size_actuators,
 )
 from splitter_ik.core.run_check import check_run, limb_joint_torques_nm
-from splitter_sim.core.kinematics import joint_positions_from_radii
-from splitter_sim.core.model import RobotModel
+from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.model import RobotModel
 
 MODEL = RobotModel()
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from splitter_ik.core.actuator_sizing import JumpAssumptions, SizingReport, size_actuators
 from splitter_ik.core.run_check import LimitCheck, check_run
-from splitter_sim.core.model import RobotModel
+from splitter_model.model import RobotModel
 
 LOG = logging.getLogger("splitter.actuator")
 

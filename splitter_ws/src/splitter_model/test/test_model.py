@@ -7,14 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_sim.core.kinematics import (
+from splitter_model.kinematics import (
     joint_positions_from_radii,
     limb_forward_kinematics,
     limb_inverse_kinematics,
     limb_offsets_from_joint_positions,
     radii_from_joint_positions,
 )
-from splitter_sim.core.model import (
+from splitter_model.model import (
     PAPER_INITIAL_RADII_M,
     InfeasibleInertiaError,
     RobotModel,

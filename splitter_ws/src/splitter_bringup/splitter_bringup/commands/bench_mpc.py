@@ -72,11 +72,11 @@ def run_benchmark(
     """Fly the scenario with both controllers; the figures as a dictionary (and a PNG)."""
     from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
     from splitter_bringup.core.scenario import load_scenario
+    from splitter_model.model import RobotModel
     from splitter_mpc.core.baseline import OptiBaselineMpc
     from splitter_mpc.core.controller import MorphingController
     from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
     from splitter_mpc.core.solvers import SolverOptions
-    from splitter_sim.core.model import RobotModel
 
     scenario = load_scenario(scenario_name)
     model = RobotModel()

@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from splitter_bringup.core.closed_loop import simulator_for
 from splitter_bringup.core.scenario import load_scenario
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
-from splitter_sim.core.model import RobotModel, principal_inertia
-from splitter_sim.core.simulator import Simulator
+from splitter_model.model import RobotModel, principal_inertia
 
 MODEL = RobotModel()
 STEPS = [([2.0, 0.35, 0.12], 200), ([3.0, 0.15, 0.39], 250)]  # (radii [m], ticks)
@@ -21,7 +21,7 @@ STEPS = [([2.0, 0.35, 0.12], 200), ([3.0, 0.15, 0.39], 250)]  # (radii [m], tick
 
 def _run(config: AllocatorConfig) -> dict[str, np.ndarray]:
     scenario = load_scenario("spin_stabilization")
-    sim = Simulator.from_scenario(scenario, MODEL)
+    sim = simulator_for(scenario, MODEL)
     allocator = TetherLimbAllocator(MODEL, config, initial_radii_m=scenario.initial_radii_m)
     steps_per_tick = round(config.control_period_s / scenario.sim_dt_s)
     out: dict[str, list] = {"tension": [], "error": [], "momentum": [], "radii": [], "plan": []}
