@@ -62,6 +62,7 @@ from splitter_mpc.core.gait import (
     gait_config_from_parameters,
     seconds_to_ns,
 )
+from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MAX_STAMP_LEAD_NS,
@@ -93,7 +94,6 @@ DEFAULTS = GaitConfig()
 TETHER_INDEX = names.JOINT_INDEX[names.TETHER_JOINT]
 TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
 # and /splitter/inertia when the attitude reference needs it (GaitConfig.needs_principal_inertia)
-MAX_PENDING_TICKS = 200  # ticks waiting for inputs before the oldest is dropped
 # Plausibility limits of the measured state: beyond them a message is corrupt (or the
 # simulation diverged) and is rejected, so the phase machine only sees sane numbers.
 MAX_POSITION_M = 1.0e6  # [m] per odom position component (runs stay within ~100 m)
@@ -248,12 +248,10 @@ class GaitPhaseManagerNode(Node):
             raise
         self._control_period_ns, self._diagnostics_period_ns = periods
         self._machine = GaitPhaseMachine(config)
-        self._tick_inputs = TICK_INPUTS + (
-            (names.INERTIA,) if config.needs_principal_inertia else ()
+        self.ticks = TickAssembler(
+            self._control_period_ns,
+            TICK_INPUTS + ((names.INERTIA,) if config.needs_principal_inertia else ()),
         )
-        self._pending: dict[int, dict[str, object | None]] = {}
-        self._last_good: dict[str, object] = {}
-        self._last_tick_ns: int | None = None
         self._ticks_answered = 0
         self._stale_ticks = 0
         self._last_output: GaitOutput | None = None
@@ -413,7 +411,6 @@ class GaitPhaseManagerNode(Node):
         self._accept(names.INERTIA, t_ns, sample)
 
     def _accept(self, topic: str, t_ns: int, sample: object) -> None:
-        self._last_good[topic] = sample
         self._collect(topic, t_ns, sample)
 
     def _reject(self, topic: str, t_ns: int, exc: MessageValidationError) -> None:
@@ -424,41 +421,27 @@ class GaitPhaseManagerNode(Node):
 
     def _collect(self, topic: str, t_ns: int, sample: object | None) -> None:
         """File an input under its tick; answer the tick once all its inputs are in."""
-        if t_ns % self._control_period_ns != 0:
-            return
-        if self._last_tick_ns is not None and t_ns <= self._last_tick_ns:
-            return  # late or repeated: that tick is answered
-        inputs = self._pending.setdefault(t_ns, {})
-        inputs[topic] = sample
-        if len(self._pending) > MAX_PENDING_TICKS:
-            oldest = min(self._pending)
+        events = self.ticks.add(topic, t_ns, sample)
+        for tick, had in events.dropped:
             self.get_logger().warning(
-                f"tick {oldest * 1e-9:.3f} s dropped: inputs never completed "
-                f"(had {sorted(self._pending[oldest])})"
+                f"tick {tick * 1e-9:.3f} s dropped: inputs never completed (had {list(had)})"
             )
-            del self._pending[oldest]
-        if all(name in inputs for name in self._tick_inputs):
-            for stale in [t for t in self._pending if t <= t_ns]:
-                if stale != t_ns:
-                    inputs_stale = sorted(self._pending[stale])
-                    self.get_logger().warning(
-                        f"tick {stale * 1e-9:.3f} s skipped: tick {t_ns * 1e-9:.3f} s completed "
-                        f"first (had {inputs_stale})"
-                    )
-                del self._pending[stale]
-            self._answer_tick(t_ns, inputs)
+        if events.completed is None:
+            return
+        t_done, inputs = events.completed
+        for tick, had in events.skipped:
+            self.get_logger().warning(
+                f"tick {tick * 1e-9:.3f} s skipped: tick {t_done * 1e-9:.3f} s completed "
+                f"first (had {list(had)})"
+            )
+        self._answer_tick(t_done, inputs)
 
     # -- the tick ------------------------------------------------------------------------
     def _answer_tick(self, t_ns: int, inputs: dict[str, object | None]) -> None:
-        self._last_tick_ns = t_ns
         self._ticks_answered += 1
         if any(sample is None for sample in inputs.values()):
             self._stale_ticks += 1
-        # A rejected input (None) is replaced by the last good message of its topic.
-        samples = {
-            topic: inputs[topic] if inputs[topic] is not None else self._last_good.get(topic)
-            for topic in self._tick_inputs
-        }
+        samples = self.ticks.samples(inputs)  # a rejected input: its topic's last good one
         odom, contact_a, contact_b, joints = (samples[topic] for topic in TICK_INPUTS)
         inertia = samples.get(names.INERTIA)
         output = None

@@ -28,10 +28,10 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from splitter_mpc.core.gait import GaitPhase
+from splitter_mpc.core.tick_inputs import MAX_PENDING_TICKS
 from splitter_mpc.gait_phase_manager_node import (
     MAX_BODY_RATE_RAD_S,
     MAX_CONTACT_FORCE_N,
-    MAX_PENDING_TICKS,
     MAX_POSITION_M,
     MAX_SPEED_M_S,
     MAX_TETHER_LENGTH_M,
@@ -288,7 +288,7 @@ def rejections(node: GaitPhaseManagerNode) -> int:
 
 
 def _pending(node: GaitPhaseManagerNode) -> dict:
-    return {t: dict(inputs) for t, inputs in node._pending.items()}
+    return {t: dict(inputs) for t, inputs in node.ticks.pending.items()}
 
 
 def _same_pending(a: dict, b: dict) -> bool:
@@ -298,7 +298,7 @@ def _same_pending(a: dict, b: dict) -> bool:
 
 
 def _assert_last_good_plausible(node: GaitPhaseManagerNode) -> None:
-    good = node._last_good
+    good = node.ticks.last_good
     if names.ODOM in good:
         odom = good[names.ODOM]
         assert np.all(np.abs(odom.position_m) <= MAX_POSITION_M)
@@ -334,14 +334,14 @@ def test_input_callbacks_survive_any_message(make_node, steps) -> None:
             if kind == "good tick":
                 stamps.t_ns += spec * TICK_NS
                 send_good_tick(node, stamps.t_ns)
-                for topic in node._tick_inputs:
+                for topic in node.ticks.inputs:
                     stamps.accepted(topic, stamps.t_ns)
                 stamps.t_ns += TICK_NS
                 continue
             stamp = stamps.make(spec)
             topic = content[0] if kind == "contact" else kind
             acceptable = stamps.acceptable(topic, stamp)
-            last_good, pending = node._last_good.get(topic), _pending(node)
+            last_good, pending = node.ticks.last_good.get(topic), _pending(node)
             rejected_before = rejections(node)
             if kind == names.ODOM:
                 node._on_odom(odom_msg(stamp, content))
@@ -355,15 +355,15 @@ def test_input_callbacks_survive_any_message(make_node, steps) -> None:
             event(f"{kind}: {'rejected' if rejected else 'accepted'}")
             if not acceptable:  # filed under no tick, the last good message kept
                 assert rejected
-                assert node._last_good.get(topic) is last_good
+                assert node.ticks.last_good.get(topic) is last_good
                 assert _same_pending(_pending(node), pending)
                 continue
             stamps.accepted(topic, conv.stamp_from_msg(stamp))
             if rejected:
-                assert node._last_good.get(topic) is last_good
+                assert node.ticks.last_good.get(topic) is last_good
             else:
-                assert node._last_good[topic] is not last_good
-            assert len(node._pending) <= MAX_PENDING_TICKS
+                assert node.ticks.last_good[topic] is not last_good
+            assert len(node.ticks.pending) <= MAX_PENDING_TICKS
             _assert_last_good_plausible(node)
         # good ticks still complete and are answered afterwards
         answered = len(published[names.JUMP_COMMAND])
@@ -379,9 +379,9 @@ def test_stamp_zero_after_ticks_is_rejected_and_keeps_the_last_good(make_node) -
         published = capture(node)
         for k in range(5):
             send_good_tick(node, k * TICK_NS)
-        good = dict(node._last_good)
+        good = dict(node.ticks.last_good)
         node._on_odom(conv.odom_to_msg(0, (9.0, 9.0, 9.0), Q_BODY_WXYZ, (5, 0, 0), (3, 0, 0)))
-        assert all(node._last_good[topic] is sample for topic, sample in good.items())
+        assert all(node.ticks.last_good[topic] is sample for topic, sample in good.items())
         assert rejection_counts(node) == {names.ODOM: 1}
         send_good_tick(node, 5 * TICK_NS)
         assert len(published[names.JUMP_COMMAND]) == 6
@@ -395,12 +395,12 @@ def test_a_far_ahead_tick_does_not_lock_the_node_out(make_node) -> None:
         published = capture(node)
         send_good_tick(node, 0)
         send_good_tick(node, 1000 * NS_PER_S)
-        assert node._pending == {}
+        assert node.ticks.pending == {}
         for k in range(1, 4):
             send_good_tick(node, k * TICK_NS)
         stamps = [conv.stamp_from_msg(m.header.stamp) for m in published[names.JUMP_COMMAND]]
         assert stamps == [0, TICK_NS, 2 * TICK_NS, 3 * TICK_NS]
-        assert rejection_counts(node) == dict.fromkeys(node._tick_inputs, 1)
+        assert rejection_counts(node) == dict.fromkeys(node.ticks.inputs, 1)
 
 
 @pytest.mark.parametrize(
@@ -417,11 +417,11 @@ def test_implausible_odom_is_rejected_and_its_tick_answered(make_node, label, mu
     with make_node() as node:
         published = capture(node)
         send_good_tick(node, 0)
-        good = node._last_good[names.ODOM]
+        good = node.ticks.last_good[names.ODOM]
         bad = conv.odom_to_msg(TICK_NS, (0, 0, 0.45), Q_BODY_WXYZ, (0, 0, 0), (0.5, -0.5, 0.5))
         mutate(bad)
         node._on_odom(bad)
-        assert node._last_good[names.ODOM] is good, label
+        assert node.ticks.last_good[names.ODOM] is good, label
         send_good_tick_without_odom(node, TICK_NS)
         assert len(published[names.JUMP_COMMAND]) == 2  # answered from the last good odom
         assert rejection_counts(node) == {names.ODOM: 1}

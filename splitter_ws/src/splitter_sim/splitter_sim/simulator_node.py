@@ -90,7 +90,14 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_sim.core.scene import scene_arrows
 from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
+from splitter_sim.core.stepping import (
+    LockstepWait,
+    RealTimePacer,
+    check_jump_wrench,
+    pushing_hemi,
+)
 
 NODE_NAME = "simulator"
 # Contact wrench topics (docs/ARCHITECTURE.md); the names live in splitter_msgs_py.names.
@@ -108,11 +115,6 @@ STATE_TOPICS = (
 MODES = ("lockstep", "real_time")
 LOCKSTEP_POLL_S = 0.005  # [s] wall period of the lockstep driver timer
 BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
-REAL_TIME_MAX_CATCH_UP = 20  # steps one real-time callback may do to catch up
-MAX_JUMP_FORCE_N = 1.0e4  # [N] a jump command beyond this is rejected as out of range
-# [N m] a jump torque (lever x force, used only to pick the pushing hemi) beyond this
-# is rejected: MAX_JUMP_FORCE_N on a 10 m lever (the hemis are at most 3 m from the COM)
-MAX_JUMP_TORQUE_NM = 1.0e5
 # [ns] commands may not be stamped later than the simulated time: they answer states
 MAX_COMMAND_LEAD_NS = 0
 _DEFAULT_CONFIG = SimConfig()
@@ -330,10 +332,8 @@ class SimulatorNode(Node):
         self._start_wall = time.monotonic()
         self._run_wall_start: float | None = None
         self._published_t_ns: int | None = None
-        self._wait_since: float | None = None
-        self._command_stamp: dict[str, int | None] = dict.fromkeys(LOCKSTEP_TOPICS)
+        self.lockstep = LockstepWait(LOCKSTEP_TOPICS, self._timeout_s)
         self._stamps = StampGate(MAX_COMMAND_LEAD_NS)
-        self._lockstep_timeouts = 0
         self._slack_events = 0
         self._was_slack = False
         self._last_state: SimState | None = None
@@ -369,7 +369,8 @@ class SimulatorNode(Node):
                 self._sim.config.dt_s / self._rate_factor, 0.001
             )  # [s] catch-up does the rest
             self._timer = self.create_timer(period, self._on_real_time_timer, clock=steady)
-        self._rt_origin = (time.monotonic(), self._sim.time_ns)
+        self._pacer = RealTimePacer(self._rate_factor, self._dt_ns)
+        self._pacer.restart(time.monotonic(), self._sim.time_ns)
         self.get_logger().info(
             f"simulator ready: {self._mode}"
             + (f" x{self._rate_factor:g}" if self._mode == "real_time" else "")
@@ -474,18 +475,9 @@ class SimulatorNode(Node):
                 raise MessageValidationError(
                     f"header.frame_id: expected '{names.WORLD_FRAME}', got {sample.frame_id!r}"
                 )
-            for label, vector, limit, unit in (
-                ("force", sample.force_n, MAX_JUMP_FORCE_N, "N"),
-                ("torque", sample.torque_nm, MAX_JUMP_TORQUE_NM, "N m"),
-            ):
-                # component check first: the norm of a huge vector would overflow
-                if np.max(np.abs(vector)) > limit or np.linalg.norm(vector) > limit:
-                    raise MessageValidationError(
-                        f"wrench.{label}: {vector.tolist()} {unit} exceeds |{label}| "
-                        f"<= {limit:g} {unit}"
-                    )
+            check_jump_wrench(sample.force_n, sample.torque_nm)
             self._sim.command_jump_force(
-                sample.force_n, self._pushing_hemi(sample.force_n, sample.torque_nm)
+                sample.force_n, pushing_hemi(self._last_state, sample.force_n, sample.torque_nm)
             )
         except ValueError as exc:
             warn_throttled(
@@ -493,22 +485,8 @@ class SimulatorNode(Node):
             )
         self._command_arrived(names.JUMP_COMMAND, stamp)
 
-    def _pushing_hemi(self, force: np.ndarray, torque: np.ndarray) -> str:
-        """The hemi whose body the commanded torque about the COM places the thrust at.
-
-        The gait phase manager sends ``tau = (p_hemi - p_com) x F``; a zero torque
-        (or a force along the tether) leaves the choice to the simulator ("auto").
-        """
-        state = self._last_state
-        scale = float(np.linalg.norm(force))
-        if state is None or scale == 0.0 or np.linalg.norm(torque) <= 1e-9 * (1.0 + scale):
-            return "auto"
-        levers = state.mass_positions_world_m[[0, 5]] - state.position_m  # hemi bodies
-        errors = [float(np.linalg.norm(torque - np.cross(lever, force))) for lever in levers]
-        return "a" if errors[0] <= errors[1] else "b"
-
     def _command_arrived(self, topic: str, stamp: int) -> None:
-        self._command_stamp[topic] = stamp
+        self.lockstep.arrived(topic, stamp)
         if self._mode == "lockstep" and self._started and stamp == self._sim.time_ns:
             self._advance()
 
@@ -587,28 +565,15 @@ class SimulatorNode(Node):
                 return
 
     def _tick_answered(self, t: int) -> bool:
-        waiting = [
-            topic
-            for topic in LOCKSTEP_TOPICS
-            if self._command_stamp[topic] != t and self.count_publishers(topic) > 0
-        ]
-        if not waiting:
-            self._wait_since = None
-            return True
-        now = time.monotonic()
-        if self._wait_since is None:
-            self._wait_since = now
-            return False
-        if now - self._wait_since < self._timeout_s:
-            return False
-        self._lockstep_timeouts += 1
-        self.get_logger().warning(
-            f"lockstep: no message stamped t = {t * 1e-9:.3f} s on {', '.join(waiting)} "
-            f"after {now - self._wait_since:.1f} s (lockstep_timeout_s); stepping on the last "
-            f"good commands ({self._lockstep_timeouts} timeouts so far)"
-        )
-        self._wait_since = None
-        return True
+        waiting = self.lockstep.waiting_for(t, lambda topic: self.count_publishers(topic) > 0)
+        step, waited = self.lockstep.may_step(waiting, time.monotonic())
+        if waited is not None:
+            self.get_logger().warning(
+                f"lockstep: no message stamped t = {t * 1e-9:.3f} s on {', '.join(waiting)} "
+                f"after {waited:.1f} s (lockstep_timeout_s); stepping on the last "
+                f"good commands ({self.lockstep.timeouts} timeouts so far)"
+            )
+        return step
 
     def _on_real_time_timer(self) -> None:
         """Real-time driver: as many steps as the wall clock (x rate_factor) asks for."""
@@ -619,25 +584,23 @@ class SimulatorNode(Node):
             if not self._ready_to_start():
                 return
             self._started = True
-            self._rt_origin = (now, self._sim.time_ns)
+            self._pacer.restart(now, self._sim.time_ns)
             self._publish_state(self._sim.time_ns)
             return
-        origin_wall, origin_t = self._rt_origin
-        due_t = origin_t + int((now - origin_wall) * self._rate_factor * 1e9)
-        steps = 0
-        while self._sim.time_ns + self._dt_ns <= due_t and not self.finished.done():
-            if steps == REAL_TIME_MAX_CATCH_UP:
-                self.get_logger().warning(
-                    f"real time: {(due_t - self._sim.time_ns) * 1e-9:.3f} s behind at "
-                    f"rate_factor {self._rate_factor:g}; dropping the backlog",
-                    throttle_duration_sec=5.0,
-                )
-                self._rt_origin = (now, self._sim.time_ns)
+        steps, dropped = self._pacer.steps_due(now, self._sim.time_ns)
+        for _ in range(steps):
+            if self.finished.done():
                 return
             self._sim.step()
-            steps += 1
             self._publish_state(self._sim.time_ns)
             self._end_reached(self._sim.time_ns)
+        if dropped and not self.finished.done():
+            self.get_logger().warning(
+                f"real time: {(self._pacer.due_ns(now) - self._sim.time_ns) * 1e-9:.3f} s "
+                f"behind at rate_factor {self._rate_factor:g}; dropping the backlog",
+                throttle_duration_sec=5.0,
+            )
+            self._pacer.restart(now, self._sim.time_ns)
 
     def _end_reached(self, t: int) -> bool:
         if not self._duration_ns or t < self._duration_ns:
@@ -655,7 +618,7 @@ class SimulatorNode(Node):
                 f"; energy {state.kinetic_energy_j:.6g} J, |H| "
                 f"{np.linalg.norm(state.angular_momentum_world):.6g} kg m^2/s, tension "
                 f"{state.tether_tension_n:.4g} N, {self._slack_events} slack events, "
-                f"{self._lockstep_timeouts} lockstep timeouts, rejected commands "
+                f"{self.lockstep.timeouts} lockstep timeouts, rejected commands "
                 f"{rejection_counts(self) or 'none'}"
             )
         self.get_logger().info(summary)
@@ -752,8 +715,8 @@ class SimulatorNode(Node):
         message = "finished" if final else "running"
         if state.tether_slack:
             level, message = 1, "tether slack"
-        if self._lockstep_timeouts:
-            message += f", {self._lockstep_timeouts} lockstep timeouts"
+        if self.lockstep.timeouts:
+            message += f", {self.lockstep.timeouts} lockstep timeouts"
         values = {
             "kinetic_energy_j": state.kinetic_energy_j,
             "rotational_energy_j": state.rotational_energy_j,
@@ -774,7 +737,7 @@ class SimulatorNode(Node):
             "actuator_work_j": state.actuator_work_j,
             "rejected_joint_commands": rejected.get("joint_commands", 0),
             "rejected_jump_commands": rejected.get("jump_command", 0),
-            "lockstep_timeouts": self._lockstep_timeouts,
+            "lockstep_timeouts": self.lockstep.timeouts,
             "unpublished_states": self._publish_failures,
             "finished": final,
         }
@@ -790,7 +753,8 @@ def _point(p) -> Point:
 
 
 def _markers(t_ns: int, state: SimState) -> MarkerArray:
-    """10 mass spheres, the tether line and the limb lines, world frame."""
+    """10 mass spheres, the tether and limb lines, and the scene's arrows (body axes,
+    angular momentum, contact forces; :mod:`splitter_sim.core.scene`), world frame."""
     stamp = stamp_to_msg(t_ns)
     positions = state.mass_positions_world_m
     out = MarkerArray()
@@ -837,6 +801,28 @@ def _markers(t_ns: int, state: SimState) -> MarkerArray:
         for tip in range(body + 1, body + 5):
             limbs.points += [_point(positions[body]), _point(positions[tip])]
     out.markers.append(limbs)
+    arrows = scene_arrows(
+        state.position_m,
+        state.orientation_wxyz,
+        state.principal_inertia_kg_m2,
+        state.angular_velocity_rad_s,
+        mass_positions_world=positions,
+        contact_forces_n=state.contact_force_n,
+    )
+    for i, arrow in enumerate(arrows):
+        m = Marker()
+        m.header.stamp = stamp
+        m.header.frame_id = names.WORLD_FRAME
+        m.ns = "splitter_arrows"
+        m.id = i
+        m.text = arrow.name
+        m.type = Marker.ARROW
+        m.action = Marker.ADD
+        m.pose.orientation.w = 1.0
+        m.points = [_point(arrow.start), _point(arrow.end)]
+        m.scale.x, m.scale.y, m.scale.z = 0.03, 0.06, 0.1  # [m] shaft, head width, head length
+        m.color.r, m.color.g, m.color.b, m.color.a = arrow.color
+        out.markers.append(m)
     return out
 
 

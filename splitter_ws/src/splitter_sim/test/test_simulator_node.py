@@ -20,6 +20,7 @@ from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import qos_for
+from splitter_sim.core.stepping import pushing_hemi
 from splitter_sim.simulator_node import SimulatorNode
 
 DT_NS = 5_000_000
@@ -134,7 +135,14 @@ def test_publishes_every_topic_stamped_on_its_grid(graph) -> None:
     assert probe.stamps(names.DIAGNOSTICS) == [0, 100_000_000, 100_000_000]
     final = probe.diagnostics()[-1]
     assert final["finished"] is True
-    assert len(probe.messages[names.MARKERS][0].markers) == 12  # 10 masses, tether, limbs
+    markers = probe.messages[names.MARKERS][0].markers
+    assert [m.ns for m in markers[:12]] == ["splitter_masses"] * 10 + [
+        "splitter_tether",
+        "splitter_limbs",
+    ]
+    # no ground contact in flight: the body axes and the angular momentum, no contact force
+    arrows = {m.text: m for m in markers[12:] if m.ns == "splitter_arrows"}
+    assert set(arrows) == {"axis_x", "axis_y", "axis_z", "angular_momentum"}
     # Contents: the paper's initial state, finite, with H conserved between samples.
     imu = [conv.imu_from_msg(m) for m in probe.messages[names.IMU]]
     np.testing.assert_allclose(imu[0].angular_velocity_rad_s, [-0.3, -0.9, 0.9])
@@ -249,6 +257,6 @@ def test_jump_command_torque_selects_the_pushing_hemi(graph) -> None:
     force = np.array([40.0, 0.0, 40.0])
     lever_b = state.mass_positions_world_m[5] - state.position_m
     lever_a = state.mass_positions_world_m[0] - state.position_m
-    assert sim._pushing_hemi(force, np.cross(lever_b, force)) == "b"
-    assert sim._pushing_hemi(force, np.cross(lever_a, force)) == "a"
-    assert sim._pushing_hemi(force, np.zeros(3)) == "auto"
+    assert pushing_hemi(sim._last_state, force, np.cross(lever_b, force)) == "b"
+    assert pushing_hemi(sim._last_state, force, np.cross(lever_a, force)) == "a"
+    assert pushing_hemi(sim._last_state, force, np.zeros(3)) == "auto"

@@ -31,7 +31,8 @@ from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import rejection_counts
-from splitter_sim.simulator_node import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM, SimulatorNode
+from splitter_sim.core.stepping import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM
+from splitter_sim.simulator_node import SimulatorNode
 
 # An overflow inside a callback means an implausible number got past validation.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
@@ -228,7 +229,7 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
             stamp = make_stamp(spec, now)
             topic = names.JOINT_COMMANDS if kind == "joints" else names.JUMP_COMMAND
             stamp_ok = _stamp_ok(stamp, now, last[topic])
-            arrived_before = node._command_stamp[topic]
+            arrived_before = node.lockstep.stamps[topic]
             cmd_before = (sim._cmd_q, sim._cmd_qd, sim._jump_force)
             rejected_before = rejections(node)
             if kind == "joints":
@@ -240,12 +241,12 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
             event(f"{kind}: {'applied' if changed else 'rejected'}")
             if not stamp_ok:  # dropped: not applied, not a lockstep answer
                 assert not changed
-                assert node._command_stamp[topic] == arrived_before
+                assert node.lockstep.stamps[topic] == arrived_before
                 assert rejections(node) == rejected_before + 1
                 continue
             t = conv.stamp_from_msg(stamp)
             last[topic] = t
-            assert node._command_stamp[topic] == t  # answers its tick, good or bad
+            assert node.lockstep.stamps[topic] == t  # answers its tick, good or bad
             if not changed:
                 assert rejections(node) == rejected_before + 1
             elif kind == "joints":
@@ -296,7 +297,7 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
         node._on_joint_commands(conv.joint_state_to_msg(now, good))
         node._on_jump_command(conv.wrench_to_msg(now, (0.0, 0.0, 5.0)))
         q, force = sim._cmd_q, sim._jump_force
-        assert node._command_stamp == dict.fromkeys(node._command_stamp, now)
+        assert node.lockstep.stamps == dict.fromkeys(node.lockstep.stamps, now)
         other = joint_positions_from_radii(MODEL, (2.0, 0.3, 0.3))
         bad_joint = conv.joint_state_to_msg(0, other)
         bad_joint.header.stamp = stamp_of(now)
@@ -305,7 +306,7 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
         node._on_joint_commands(bad_joint)
         node._on_jump_command(bad_jump)
         assert sim._cmd_q is q and sim._jump_force is force, label
-        assert node._command_stamp == dict.fromkeys(node._command_stamp, now), label
+        assert node.lockstep.stamps == dict.fromkeys(node.lockstep.stamps, now), label
         assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
 
 
@@ -318,7 +319,7 @@ def test_huge_jump_wrench_is_rejected_but_answers_its_tick(make_node, force, tor
         node._publish_state(0)
         node._on_jump_command(jump_msg(Time(), names.WORLD_FRAME, force, torque))
         assert node._sim._jump_force == (0.0, 0.0, 0.0)
-        assert node._command_stamp[names.JUMP_COMMAND] == 0
+        assert node.lockstep.stamps[names.JUMP_COMMAND] == 0
         assert rejection_counts(node) == {"jump_command": 1}
 
 

@@ -1,0 +1,121 @@
+"""What the simulator node decides between steps: command checks, lockstep waits, real-time pace.
+
+ROS-free; the ``simulator`` node calls these and does the messaging.
+
+* :func:`check_jump_wrench` bounds a commanded jump wrench; :func:`pushing_hemi`
+  finds the hemi whose body the commanded torque about the centre of mass places
+  the thrust at.
+* :class:`LockstepWait`: on a control tick the simulator steps once every
+  lockstep command topic that has a publisher delivered a message stamped with
+  the tick, or once it has waited ``timeout_s`` (wall) for them.
+* :class:`RealTimePacer`: how many steps the wall clock (times a rate factor)
+  asks for, with a cap on the catch-up of one call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from splitter_sim.core.simulator import HEMI_BODY_INDEX, SimState
+
+MAX_JUMP_FORCE_N = 1.0e4  # [N] a jump command beyond this is rejected as out of range
+# [N m] likewise for its torque (the force times a lever of at most ~10 m is ~1e5 N m)
+MAX_JUMP_TORQUE_NM = 1.0e5
+REAL_TIME_MAX_CATCH_UP = 20  # steps one real-time call may do to catch up
+
+
+def check_jump_wrench(force_n: ArrayLike, torque_nm: ArrayLike) -> None:
+    """Raise ``ValueError`` naming the part of a jump wrench above its bound."""
+    for label, vector, limit, unit in (
+        ("force", np.asarray(force_n, dtype=float), MAX_JUMP_FORCE_N, "N"),
+        ("torque", np.asarray(torque_nm, dtype=float), MAX_JUMP_TORQUE_NM, "N m"),
+    ):
+        # component check first: the norm of a huge vector would overflow
+        if np.max(np.abs(vector)) > limit or np.linalg.norm(vector) > limit:
+            raise ValueError(
+                f"wrench.{label}: {vector.tolist()} {unit} exceeds |{label}| <= {limit:g} {unit}"
+            )
+
+
+def pushing_hemi(state: SimState | None, force_n: ArrayLike, torque_nm: ArrayLike) -> str:
+    """The hemi ("a", "b") whose body the commanded torque about the COM places the thrust at.
+
+    The gait phase manager sends ``tau = (p_hemi - p_com) x F``; a zero torque (or
+    a force along the tether), or no state yet, leaves the choice to the simulator
+    ("auto").
+    """
+    force = np.asarray(force_n, dtype=float)
+    torque = np.asarray(torque_nm, dtype=float)
+    scale = float(np.linalg.norm(force))
+    if state is None or scale == 0.0 or np.linalg.norm(torque) <= 1e-9 * (1.0 + scale):
+        return "auto"
+    levers = state.mass_positions_world_m[list(HEMI_BODY_INDEX)] - state.position_m
+    errors = [float(np.linalg.norm(torque - np.cross(lever, force))) for lever in levers]
+    return "a" if errors[0] <= errors[1] else "b"
+
+
+@dataclass
+class LockstepWait:
+    """Which lockstep command topics answered a tick, and how long the simulator waited."""
+
+    topics: tuple[str, ...]
+    timeout_s: float  # [s] wall
+    stamps: dict[str, int | None] = field(default_factory=dict, init=False)
+    timeouts: int = field(default=0, init=False)
+    _since: float | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        self.stamps = dict.fromkeys(self.topics)
+
+    def arrived(self, topic: str, stamp_ns: int) -> None:
+        """A command of ``topic`` stamped ``stamp_ns`` answered its tick."""
+        self.stamps[topic] = int(stamp_ns)
+
+    def waiting_for(self, t_ns: int, has_publisher: Callable[[str], bool]) -> list[str]:
+        """Topics with a publisher that have not answered tick ``t_ns``."""
+        return [t for t in self.topics if self.stamps[t] != t_ns and has_publisher(t)]
+
+    def may_step(self, waiting: Sequence[str], now_s: float) -> tuple[bool, float | None]:
+        """(step now?, seconds waited when the wait timed out, else None)."""
+        if not waiting:
+            self._since = None
+            return True, None
+        if self._since is None:
+            self._since = now_s
+            return False, None
+        waited = now_s - self._since
+        if waited < self.timeout_s:
+            return False, None
+        self.timeouts += 1
+        self._since = None
+        return True, waited
+
+
+@dataclass
+class RealTimePacer:
+    """Steps due by the wall clock: ``rate_factor`` simulated seconds per wall second."""
+
+    rate_factor: float
+    dt_ns: int
+    origin: tuple[float, int] = (0.0, 0)  # (wall [s], simulated [ns]) of the pace's start
+
+    def restart(self, now_s: float, t_ns: int) -> None:
+        """Pace from (``now_s``, ``t_ns``) on (the start, or after dropping a backlog)."""
+        self.origin = (float(now_s), int(t_ns))
+
+    def due_ns(self, now_s: float) -> int:
+        """Simulated time the wall clock asks for at ``now_s`` [ns]."""
+        wall, t = self.origin
+        return t + int((now_s - wall) * self.rate_factor * 1e9)
+
+    def steps_due(self, now_s: float, t_ns: int) -> tuple[int, bool]:
+        """(steps to take now, whether the backlog beyond the cap is dropped)."""
+        due = self.due_ns(now_s)
+        steps = max(0, (due - t_ns) // self.dt_ns)
+        if steps > REAL_TIME_MAX_CATCH_UP:
+            return REAL_TIME_MAX_CATCH_UP, True
+        return int(steps), False
