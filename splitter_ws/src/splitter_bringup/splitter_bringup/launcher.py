@@ -46,6 +46,7 @@ DRAIN_S = 1.5
 _PROGRESS = re.compile(r"t = ([0-9.]+) s")
 _STALLED = re.compile(r"STALLED (\w+): (.*)")
 WATCHDOG = "graph_watchdog"
+FOXGLOVE_BRIDGE = "foxglove_bridge"
 # the simulator steps on after this many stall timeouts only when no watchdog ends the run
 SIMULATOR_TIMEOUT_FACTOR = 3.0
 # a death that does not end a real-time run (the graph keeps running without it)
@@ -80,11 +81,14 @@ def launch(
     stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S,
     quiet: bool = False,
     on_progress: Callable[[float], None] | None = None,
+    foxglove_port: int | None = None,
+    foxglove_host: str = "127.0.0.1",
 ) -> LaunchResult:
     """Run ``scenario`` through the node graph; records ``out_dir/bag`` when ``record``.
 
     ``stall_timeout_s``: wall time without progress after which the watchdog names a
-    node stalled (module doc).
+    node stalled (module doc). ``foxglove_port``: also serve the graph to Foxglove on
+    ``ws://foxglove_host:foxglove_port`` (:mod:`splitter_bringup.foxglove_bridge_node`).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     bag_dir = out_dir / "bag" if record else None
@@ -92,6 +96,8 @@ def launch(
     env["PYTHONUNBUFFERED"] = "1"
     nodes = graph_nodes(scenario, real_time=real_time, rate_factor=rate_factor, bag_dir=bag_dir)
     nodes = _with_watchdog(nodes, real_time, stall_timeout_s)
+    if foxglove_port is not None:
+        nodes = _with_foxglove(nodes, foxglove_host, foxglove_port)
     incidents: list[str] = []
 
     def on_line(name: str, line: str) -> None:
@@ -162,6 +168,18 @@ def _with_watchdog(
         else:
             out.append(node)
     return out
+
+
+def _with_foxglove(nodes: list[NodeLaunch], host: str, port: int) -> list[NodeLaunch]:
+    """``nodes`` with the Foxglove bridge before the simulator (it sees the run from its start)."""
+    bridge = NodeLaunch(
+        FOXGLOVE_BRIDGE,
+        "splitter_bringup.foxglove_bridge_node:main",
+        "splitter_bringup.foxglove_bridge_node:FoxgloveBridgeNode",
+        {"use_sim_time": True, "host": host, "port": int(port)},
+    )
+    out = [n for n in nodes if n.name != "simulator"]
+    return [*out, bridge, *(n for n in nodes if n.name == "simulator")]
 
 
 def _wait(

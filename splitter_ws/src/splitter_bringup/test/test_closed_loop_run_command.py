@@ -30,7 +30,14 @@ def test_run_writes_summary_series_and_plots(tmp_path, capsys) -> None:
     for key, paper in (("residual_wx", 0.004), ("wy_final", 1.28), ("max_g", 0.47)):
         assert summary["metrics"][key]["paper"] == paper
         assert np.isfinite(summary["metrics"][key]["value"])
-    for name in ("mpc.npz", "open_loop.npz", "mpc_flight.png", "mpc_quaternion.png"):
+    for name in (
+        "mpc.npz",
+        "open_loop.npz",
+        "mpc_flight.png",
+        "mpc_quaternion.png",
+        "mpc_flight.mp4",  # the 3D animation of each variant
+        "open_loop_flight.mp4",
+    ):
         assert (out / name).stat().st_size > 0
     series = RunSeries.load_npz(out / "mpc.npz")
     assert len(series) == 61 and series.t_s[-1] == 0.3  # every 5 ms step, both ends
@@ -50,7 +57,7 @@ def test_run_checks_the_papers_findings_on_the_variants_it_ran(tmp_path, capsys)
     scenario = tmp_path / "short_orientation.yaml"
     scenario.write_text(yaml.safe_dump(data))
     out = tmp_path / "out"
-    args = ["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile"]
+    args = ["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile", "--no-animation"]
     assert splitter([*args, "--variant", "quaternion_tracking", "--variant", "velocity_only"]) == 0
     findings = json.loads((out / "summary.json").read_text())["findings"]
     assert len(findings) == len(data["findings"])

@@ -11,6 +11,7 @@ from splitter_bringup.core.watchdog import DEFAULT_STALL_TIMEOUT_S
 from splitter_bringup.launcher import launch
 
 LOG = logging.getLogger(__name__)
+FOXGLOVE_PORT = 8765  # Foxglove's default WebSocket port
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,6 +36,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="wall seconds without progress after which a node is named stalled "
         "(lockstep: the run stops and fails; real time: it is reported)",
     )
+    parser.add_argument(
+        "--foxglove",
+        type=int,
+        nargs="?",
+        const=FOXGLOVE_PORT,
+        default=None,
+        metavar="PORT",
+        help=f"serve the graph to Foxglove over WebSocket on PORT (default {FOXGLOVE_PORT})",
+    )
+    parser.add_argument(
+        "--foxglove-host",
+        default="127.0.0.1",
+        help="address the Foxglove server binds (0.0.0.0 in a container with -p PORT:PORT)",
+    )
     parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for every node")
     parser.add_argument(
         "--multi-host",
@@ -51,6 +66,9 @@ def main(args: argparse.Namespace) -> int:
     if not args.stall_timeout > 0.0:
         LOG.error("--stall-timeout must be > 0, got %s", args.stall_timeout)
         return 2
+    if args.foxglove is not None and not 0 <= args.foxglove <= 65535:
+        LOG.error("--foxglove PORT must be in [0, 65535], got %s", args.foxglove)
+        return 2
     scenario = load_scenario(args.scenario, args.variant)
     result = launch(
         scenario,
@@ -61,6 +79,8 @@ def main(args: argparse.Namespace) -> int:
         multi_host=args.multi_host,
         domain_id=args.domain_id,
         stall_timeout_s=args.stall_timeout,
+        foxglove_port=args.foxglove,
+        foxglove_host=args.foxglove_host,
     )
     for incident in result.incidents:
         LOG.error("during the run: %s", incident)

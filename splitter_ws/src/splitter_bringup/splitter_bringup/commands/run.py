@@ -7,8 +7,9 @@ order in one process (:mod:`splitter_bringup.core.closed_loop`).
 Either way the same metrics and plots are made from a ``RunSeries``.
 
 Writes ``DIR/summary.json`` (the main variant's figures beside the paper's, and
-every variant's), ``DIR/<variant>.npz`` and ``DIR/<variant>_*.png``, and prints a
-table.
+every variant's), ``DIR/<variant>.npz``, ``DIR/<variant>_*.png`` and the flight in
+3D, ``DIR/<variant>_flight.mp4`` (:mod:`splitter_bringup.commands.animate`;
+``--no-animation`` skips it), and prints a table.
 """
 
 from __future__ import annotations
@@ -51,6 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-compile", action="store_true", help="MPC without compiled code (library backend)"
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument(
+        "--no-animation", action="store_true", help="skip the 3D animation of each variant"
+    )
 
 
 def _progress_printer(label: str):
@@ -97,6 +101,21 @@ def _metrics(series: RunSeries, scenario) -> dict:
         metrics = {**jumping_summary(series, scenario.jumps, scenario.paper), **metrics}
         metrics.pop("max_horizontal_speed_m_s", None)
     return metrics
+
+
+def _animate(series: RunSeries, out: Path, variant: str, title: str) -> None:
+    """``out/<variant>_flight.mp4``, with contact arrows when the graph recorded a bag."""
+    from splitter_bringup.commands.animate import contact_forces_from_bag, write_animation
+
+    bag = out / variant / "bag"
+    contact = contact_forces_from_bag(bag, series.t_s) if (bag / "metadata.yaml").exists() else None
+    started = time.monotonic()
+    info = write_animation(series, out / f"{variant}_flight.mp4", title, contact_forces_n=contact)
+    print(
+        f"  {variant}: animation {info.path.name}, {info.frames} frames "
+        f"({time.monotonic() - started:.1f} s)",
+        file=sys.stderr,
+    )
 
 
 def _jsonable(value):
@@ -157,6 +176,8 @@ def main(args: argparse.Namespace) -> int:
                 plot_trajectory(
                     series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
                 )
+        if not args.no_animation:
+            _animate(series, out, variant, f"{base.name}: {variant}")
     findings = evaluate_findings(base.findings, all_metrics)
     if not args.no_plots and len(runs) > 1:
         from splitter_bringup.core.plots import plot_comparison, plot_findings
