@@ -24,7 +24,7 @@ export ROS_DOMAIN_ID ?= 42
 export MPLBACKEND := Agg
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: demo test lint install clean colcon bench
+.PHONY: demo test lint install clean colcon bench container container-test
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -32,7 +32,7 @@ $(BIN)/python:
 $(STAMP): requirements.txt $(PKG_SETUP) | $(BIN)/python
 	$(BIN)/pip install --quiet --disable-pip-version-check -r requirements.txt
 	$(BIN)/pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
-		$(foreach d,$(PKG_DIRS),-e $(d))
+		--use-pep517 $(foreach d,$(PKG_DIRS),-e $(d))
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -61,3 +61,13 @@ colcon: $(STAMP)
 
 clean:
 	rm -rf $(VENV) splitter_ws/build splitter_ws/install splitter_ws/log
+
+# The container (docker/): `make container` installs docker.io and mmdebstrap when
+# missing (as root), starts a Docker engine, builds the Debian base and the image
+# splitter:jazzy; `make container-test` runs spin_stabilization in it and checks it
+# against a host run (.ci/run calls it after `make test`).
+container:
+	docker/build.sh
+
+container-test: $(STAMP)
+	docker/container_test.sh

@@ -73,10 +73,9 @@ def compiled_library(
     """Path of the shared library built from the C file ``write_source(path)`` writes.
 
     The source is regenerated each call (cheap) and hashed; the library is compiled
-    only when no library with that hash exists yet.
+    only when no library with that hash exists yet (only then is a compiler needed:
+    the container's runtime image has none, and its cache is filled at build time).
     """
-    if not compiler_available(compiler):
-        raise CompilationError(f"C compiler {compiler!r} not found")
     folder = (cache_dir or default_cache_dir()).expanduser()
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"{name}_", dir=folder) as tmp:
@@ -88,6 +87,8 @@ def compiled_library(
         digest.update(source.read_bytes())
         target = folder / f"{name}_{digest.hexdigest()[:20]}.so"
         if not target.exists():
+            if not compiler_available(compiler):  # a cached library needs no compiler
+                raise CompilationError(f"C compiler {compiler!r} not found")
             _compile(source, target, flags, compiler)
     return target
 
