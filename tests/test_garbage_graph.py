@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.garbage import garbage_message, non_finite_fields, run_with_garbage
+from splitter_bringup.garbage import garbage_message, run_with_garbage
 from splitter_msgs_py import names
+from splitter_msgs_py.inspection import non_finite_fields
 
 
 def test_garbage_messages_are_garbage() -> None:

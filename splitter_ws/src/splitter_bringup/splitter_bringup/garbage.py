@@ -36,6 +36,7 @@ from splitter_bringup.launcher import LaunchResult, launch
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg
 from splitter_msgs_py.environment import apply_ros_environment
+from splitter_msgs_py.inspection import non_finite_fields
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 
 LOG = logging.getLogger(__name__)
@@ -75,26 +76,6 @@ def _float_fields(msg: object, prefix: str = "") -> list[tuple[object, str, str]
         elif hasattr(value, "get_fields_and_field_types"):
             out += _float_fields(value, f"{prefix}{name}.")
     return out
-
-
-def non_finite_fields(msg: object) -> list[str]:
-    """Names of the float fields of ``msg`` (nested, sequences too) that hold NaN or inf."""
-    bad = []
-    for name, kind in msg.get_fields_and_field_types().items():
-        value = getattr(msg, name)
-        if kind in ("double", "float"):
-            if not math.isfinite(value):
-                bad.append(name)
-        elif kind.startswith(("sequence<double", "double[", "float[", "sequence<float")):
-            if not np.all(np.isfinite(np.asarray(value, dtype=float))):
-                bad.append(name)
-        elif kind.startswith("sequence<") and isinstance(value, list):
-            for i, item in enumerate(value):
-                if hasattr(item, "get_fields_and_field_types"):
-                    bad += [f"{name}[{i}].{b}" for b in non_finite_fields(item)]
-        elif hasattr(value, "get_fields_and_field_types"):
-            bad += [f"{name}.{b}" for b in non_finite_fields(value)]
-    return bad
 
 
 def _set_stamp(msg: object, t_ns: int) -> None:

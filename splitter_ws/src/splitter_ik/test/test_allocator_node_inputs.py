@@ -9,9 +9,7 @@ as it was (counted as a rejection), and everything the node publishes is finite.
 
 from __future__ import annotations
 
-import array
 import math
-from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -29,6 +27,7 @@ from splitter_ik.ik_tether_allocator_node import MAX_BODY_RATE_RAD_S, IkTetherAl
 from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.inspection import non_finite_fields, record_publications
 from splitter_msgs_py.parameters import rejection_counts
 
 # An overflow inside a callback means an implausible number got past validation.
@@ -88,36 +87,9 @@ class Clock:
         return Time(sec=spec[1], nanosec=spec[2])
 
 
-def capture(node) -> dict[str, list]:
-    """Every message the node publishes, by topic (the publishers still publish)."""
-    out: dict[str, list] = defaultdict(list)
-    for publisher in node.publishers:
-        original = publisher.publish
-
-        def publish(msg, topic=publisher.topic_name, original=original) -> None:
-            out[topic].append(msg)
-            original(msg)
-
-        publisher.publish = publish
-    return out
-
-
-def assert_finite(value, path: str = "msg") -> None:
+def assert_finite(msg: object, path: str = "msg") -> None:
     """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    if hasattr(value, "get_fields_and_field_types"):
-        for field in value.get_fields_and_field_types():
-            assert_finite(getattr(value, field), f"{path}.{field}")
-    elif isinstance(value, float):
-        assert math.isfinite(value), path
-    elif isinstance(value, list | tuple | array.array | np.ndarray):
-        for i, item in enumerate(value):
-            assert_finite(item, f"{path}[{i}]")
-    elif isinstance(value, str) and path.endswith(".value"):  # diagnostics KeyValue
-        try:
-            number = float(value)
-        except ValueError:
-            return
-        assert math.isfinite(number), f"{path} = {value}"
+    assert non_finite_fields(msg, path) == []
 
 
 def total_rejections(node) -> int:
@@ -206,7 +178,7 @@ def _assert_node_sane(node: IkTetherAllocatorNode, published: dict[str, list]) -
 )
 def test_setpoint_callback_survives_any_message(make_node, steps) -> None:
     with make_node(initialize_from_measured_inertia=False) as node:
-        published = capture(node)
+        published = record_publications(node)
         clock = Clock()
         for spec, vector, frame in steps:
             msg = vector3_msg(clock.stamp(spec), vector, frame)
@@ -261,7 +233,7 @@ def test_any_sequence_of_imu_inertia_and_setpoints(make_node, steps) -> None:
     """All three callbacks interleaved: imu and inertia (the fallback answers inertia ticks
     while nothing publishes setpoints, as here) and setpoints."""
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         clock = Clock()
         for kind, spec, content, frame in steps:
             stamp = clock.stamp(spec)
@@ -301,7 +273,7 @@ def test_huge_setpoint_is_rejected_and_answered_from_the_last_good(make_node, va
     """1e300 on /splitter/inertia_setpoint crashed the node (AssertionError in the
     projection after an overflow); now it is rejected at the boundary, its tick answered."""
     with make_node(initialize_from_measured_inertia=False) as node:
-        published = capture(node)
+        published = record_publications(node)
         _good_ticks(node, 3)
         good = node._last_good_setpoint
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(3 * TICK_NS), [value] * 3))
@@ -318,7 +290,7 @@ def test_huge_setpoint_is_rejected_and_answered_from_the_last_good(make_node, va
 
 def test_tiny_positive_setpoint_is_legal_and_projected(make_node) -> None:
     with make_node(initialize_from_measured_inertia=False) as node:
-        published = capture(node)
+        published = record_publications(node)
         _good_ticks(node, 1)
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(TICK_NS), [1e-300] * 3))
         assert node.last_allocation.saturated
@@ -350,7 +322,7 @@ def test_bad_stamp_is_rejected_and_never_resets_the_allocator(
     """A setpoint stamped 0 once time advanced used to "restart the allocator from the
     last radii"; a bad stamp is now a rejected input: nothing answered, nothing reset."""
     with make_node(initialize_from_measured_inertia=False) as node:
-        published = capture(node)
+        published = record_publications(node)
         _good_ticks(node, 6)
         before = _snapshot(node)
         state = node.allocator._state
@@ -370,7 +342,7 @@ def test_bad_stamp_is_rejected_and_never_resets_the_allocator(
 
 def test_a_repeated_tick_is_recomputed_not_rejected(make_node) -> None:
     with make_node(initialize_from_measured_inertia=False) as node:
-        published = capture(node)
+        published = record_publications(node)
         _good_ticks(node, 3)
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(2 * TICK_NS), TARGET * 1.01))
         assert [stamp_ns(m) for m in published[names.JOINT_COMMANDS]][-2:] == [2 * TICK_NS] * 2

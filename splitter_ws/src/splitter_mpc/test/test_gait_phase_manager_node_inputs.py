@@ -11,9 +11,7 @@ rejected for its contents leaves it too; everything the node publishes is finite
 
 from __future__ import annotations
 
-import array
 import math
-from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -40,6 +38,7 @@ from splitter_mpc.gait_phase_manager_node import (
 )
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.inspection import non_finite_fields, record_publications
 from splitter_msgs_py.parameters import rejection_counts
 
 # An overflow inside a callback means an implausible number got past validation.
@@ -146,36 +145,9 @@ SETTINGS = settings(
 )
 
 
-def capture(node) -> dict[str, list]:
-    """Every message the node publishes, by topic (the publishers still publish)."""
-    out: dict[str, list] = defaultdict(list)
-    for publisher in node.publishers:
-        original = publisher.publish
-
-        def publish(msg, topic=publisher.topic_name, original=original) -> None:
-            out[topic].append(msg)
-            original(msg)
-
-        publisher.publish = publish
-    return out
-
-
-def assert_finite(value, path: str = "msg") -> None:
+def assert_finite(msg: object, path: str = "msg") -> None:
     """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    if hasattr(value, "get_fields_and_field_types"):
-        for field in value.get_fields_and_field_types():
-            assert_finite(getattr(value, field), f"{path}.{field}")
-    elif isinstance(value, float):
-        assert math.isfinite(value), path
-    elif isinstance(value, list | tuple | array.array | np.ndarray):
-        for i, item in enumerate(value):
-            assert_finite(item, f"{path}[{i}]")
-    elif isinstance(value, str) and path.endswith(".value"):  # diagnostics KeyValue
-        try:
-            number = float(value)
-        except ValueError:
-            return
-        assert math.isfinite(number), f"{path} = {value}"
+    assert non_finite_fields(msg, path) == []
 
 
 # --- messages -------------------------------------------------------------------------------
@@ -328,7 +300,7 @@ def _assert_published_sane(published: dict[str, list]) -> None:
 @given(steps=st.lists(STEP, max_size=14))
 def test_input_callbacks_survive_any_message(make_node, steps) -> None:
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         stamps = Stamps()
         for kind, spec, content in steps:
             if kind == "good tick":
@@ -376,7 +348,7 @@ def test_input_callbacks_survive_any_message(make_node, steps) -> None:
 # --- stamps that used to be taken as they came ---------------------------------------------
 def test_stamp_zero_after_ticks_is_rejected_and_keeps_the_last_good(make_node) -> None:
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         for k in range(5):
             send_good_tick(node, k * TICK_NS)
         good = dict(node.ticks.last_good)
@@ -392,7 +364,7 @@ def test_a_far_ahead_tick_does_not_lock_the_node_out(make_node) -> None:
     """A complete set of inputs stamped 1000 s ahead would have been answered, and every
     later (correct) tick ignored as 'late'; now it is rejected and ticks go on."""
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         send_good_tick(node, 0)
         send_good_tick(node, 1000 * NS_PER_S)
         assert node.ticks.pending == {}
@@ -415,7 +387,7 @@ def test_a_far_ahead_tick_does_not_lock_the_node_out(make_node) -> None:
 )
 def test_implausible_odom_is_rejected_and_its_tick_answered(make_node, label, mutate) -> None:
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         send_good_tick(node, 0)
         good = node.ticks.last_good[names.ODOM]
         bad = conv.odom_to_msg(TICK_NS, (0, 0, 0.45), Q_BODY_WXYZ, (0, 0, 0), (0.5, -0.5, 0.5))

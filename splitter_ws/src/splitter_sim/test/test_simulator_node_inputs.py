@@ -11,9 +11,7 @@ node publishes stays finite.
 
 from __future__ import annotations
 
-import array
 import math
-from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -30,6 +28,7 @@ from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.inspection import non_finite_fields, record_publications
 from splitter_msgs_py.parameters import rejection_counts
 from splitter_sim.core.stepping import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM
 from splitter_sim.simulator_node import SimulatorNode
@@ -113,36 +112,9 @@ SETTINGS = settings(
 )
 
 
-def capture(node) -> dict[str, list]:
-    """Every message the node publishes, by topic (the publishers still publish)."""
-    out: dict[str, list] = defaultdict(list)
-    for publisher in node.publishers:
-        original = publisher.publish
-
-        def publish(msg, topic=publisher.topic_name, original=original) -> None:
-            out[topic].append(msg)
-            original(msg)
-
-        publisher.publish = publish
-    return out
-
-
-def assert_finite(value, path: str = "msg") -> None:
+def assert_finite(msg: object, path: str = "msg") -> None:
     """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    if hasattr(value, "get_fields_and_field_types"):
-        for field in value.get_fields_and_field_types():
-            assert_finite(getattr(value, field), f"{path}.{field}")
-    elif isinstance(value, float):
-        assert math.isfinite(value), path
-    elif isinstance(value, list | tuple | array.array | np.ndarray):
-        for i, item in enumerate(value):
-            assert_finite(item, f"{path}[{i}]")
-    elif isinstance(value, str) and path.endswith(".value"):  # diagnostics KeyValue
-        try:
-            number = float(value)
-        except ValueError:
-            return
-        assert math.isfinite(number), f"{path} = {value}"
+    assert non_finite_fields(msg, path) == []
 
 
 def make_stamp(spec: tuple, now_ns: int) -> Time:
@@ -217,7 +189,7 @@ def _stamp_ok(stamp: Time, now_ns: int, last_ns: int | None) -> bool:
 @given(steps=st.lists(STEP, max_size=10))
 def test_command_callbacks_survive_any_message(make_node, steps) -> None:
     with make_node() as node:
-        published = capture(node)
+        published = record_publications(node)
         sim = node._sim
         node._publish_state(0)
         last: dict[str, int | None] = {names.JOINT_COMMANDS: None, names.JUMP_COMMAND: None}
