@@ -119,6 +119,13 @@ PARAMETERS = (
         max_value=1e4,
     ),
     ParameterSpec(
+        "touchdown_debounce_s",
+        DEFAULTS.touchdown_debounce_ns / NS_PER_S,
+        "stance without a break for at least this long means touchdown [s]",
+        min_value=0.0,
+        max_value=1.0,
+    ),
+    ParameterSpec(
         "liftoff_debounce_s",
         DEFAULTS.liftoff_debounce_ns / NS_PER_S,
         "no stance for longer than this means lift-off [s]",
@@ -145,13 +152,6 @@ PARAMETERS = (
         "time at rest in stance before LANDED [s]",
         min_value=0.0,
         max_value=60.0,
-    ),
-    ParameterSpec(
-        "landed_exit_factor",
-        DEFAULTS.landed_exit_factor,
-        "LANDED is left when speed or angular speed exceed this times the rest thresholds",
-        min_value=1.0,
-        max_value=100.0,
     ),
     ParameterSpec(
         "w_ref_rad_s",
@@ -255,6 +255,7 @@ class GaitPhaseManagerNode(Node):
         self._ticks_answered = 0
         self._stale_ticks = 0
         self._last_output: GaitOutput | None = None
+        self._last_change: tuple[int, str] = (0, "")  # (stamp [ns], reason) of the last change
         self._stamps = StampGate(MAX_STAMP_LEAD_NS)
 
         self._jump_pub = self.create_publisher(
@@ -484,8 +485,9 @@ class GaitPhaseManagerNode(Node):
             self._last_output = output
             if output.phase_changed:
                 self.get_logger().info(
-                    f"gait phase {output.phase.value} at t = {t_ns * 1e-9:.3f} s"
+                    f"gait phase {output.phase.value} at t = {t_ns * 1e-9:.3f} s: {output.reason}"
                 )
+                self._last_change = (t_ns, output.reason)
                 self._phase_pub.publish(String(data=output.phase.value))
             if output.reference is not None:
                 self._publish_reference(output)
@@ -525,6 +527,9 @@ class GaitPhaseManagerNode(Node):
                     "thrusting": output.thrusting,
                     "pushing_hemi": output.pushing_hemi or "",
                     "jump_waiting_for_stance": output.jump_waiting,
+                    "on_ground": output.on_ground,
+                    "last_change_s": self._last_change[0] * 1e-9,
+                    "last_change_reason": self._last_change[1],
                     "hemi_a_height_m": output.hemi_height_m[0],
                     "hemi_b_height_m": output.hemi_height_m[1],
                     "jump_force_z_n": float(output.jump_force_n[2]),

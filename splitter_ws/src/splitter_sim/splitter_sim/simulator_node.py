@@ -262,6 +262,39 @@ PARAMETERS = (
         min_value=0.0,
         max_value=10.0,
     ),
+    ParameterSpec(
+        "compliant_legs",
+        _DEFAULT_CONFIG.compliant_legs,
+        "stance legs under impedance control over the stroke (splitter_sim.core.legs)",
+    ),
+    ParameterSpec(
+        "leg_stiffness_n_m",
+        _DEFAULT_CONFIG.leg_stiffness_n_m,
+        "stiffness of a hemi's legs in stance [N/m]",
+        min_value=0.0,
+        max_value=1e6,
+    ),
+    ParameterSpec(
+        "leg_damping_n_s_m",
+        _DEFAULT_CONFIG.leg_damping_n_s_m,
+        "vertical damping of a hemi's legs in stance [N s/m]",
+        min_value=0.0,
+        max_value=1e6,
+    ),
+    ParameterSpec(
+        "leg_tangential_damping_n_s_m",
+        _DEFAULT_CONFIG.leg_tangential_damping_n_s_m,
+        "horizontal damping of a hemi's legs in stance (feet planted) [N s/m]",
+        min_value=0.0,
+        max_value=1e6,
+    ),
+    ParameterSpec(
+        "leg_force_max_n",
+        _DEFAULT_CONFIG.leg_force_max_n,
+        "largest stance force of a hemi's legs (limbs' dynamic limit) [N]",
+        min_value=1e-3,
+        max_value=1e5,
+    ),
 )
 
 
@@ -296,6 +329,11 @@ _FIELD_PARAMETERS = {
     "friction_damping_n_s_m": "friction_damping_n_s_m",
     "contact_substeps": "contact_substeps",
     "thrust_stroke_m": "thrust_stroke_m",
+    "compliant_legs": "compliant_legs",
+    "leg_stiffness_n_m": "leg_stiffness_n_m",
+    "leg_damping_n_s_m": "leg_damping_n_s_m",
+    "leg_tangential_damping_n_s_m": "leg_tangential_damping_n_s_m",
+    "leg_force_max_n": "leg_force_max_n",
     "gravity_m_s2": "gravity",
 }
 
@@ -416,6 +454,11 @@ class SimulatorNode(Node):
                 friction_damping_n_s_m=float(values["friction_damping_n_s_m"]),
                 contact_substeps=int(values["contact_substeps"]),
                 thrust_stroke_m=float(values["thrust_stroke_m"]),
+                compliant_legs=bool(values["compliant_legs"]),
+                leg_stiffness_n_m=float(values["leg_stiffness_n_m"]),
+                leg_damping_n_s_m=float(values["leg_damping_n_s_m"]),
+                leg_tangential_damping_n_s_m=float(values["leg_tangential_damping_n_s_m"]),
+                leg_force_max_n=float(values["leg_force_max_n"]),
             )
             xyzw = Rotation.from_euler(
                 "xyz", values["initial_orientation_euler_deg"], degrees=True

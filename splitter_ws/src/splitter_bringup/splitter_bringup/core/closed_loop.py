@@ -49,6 +49,7 @@ from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
+from splitter_sim.core.stepping import pushing_hemi
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -82,6 +83,7 @@ def simulator_for(scenario: Scenario, model: RobotModel | None = None) -> Simula
         dt_s=float(scenario.sim_dt_s),
         gravity_m_s2=float(scenario.gravity_m_s2),
         ground_contact=bool(scenario.ground_contact),
+        compliant_legs=bool(scenario.compliant_legs),
     )
     return Simulator(model or RobotModel(), config, initial)
 
@@ -177,7 +179,10 @@ def run_closed_loop(
                 ref = out.reference
                 q_ref = received_quaternion(ref.q_ref_wxyz, hops=1)  # pose message
                 controller.set_reference(ref.stamp_ns, ref.w_ref_rad_s, q_ref)
-            sim.command_jump_force(out.jump_force_n, out.pushing_hemi or "auto")
+            # The simulator node reads the pushing hemi off the wrench's torque: the same here.
+            sim.command_jump_force(
+                out.jump_force_n, pushing_hemi(state, out.jump_force_n, out.jump_torque_nm)
+            )
             if t in fail_ns:
                 controller.inject_solver_failures(1)
             setpoint = controller.on_state(

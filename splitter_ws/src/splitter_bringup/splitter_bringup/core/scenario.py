@@ -117,6 +117,7 @@ class Scenario:
     controller: ControllerSpec
     jumps: tuple[JumpSpec, ...]
     ground_contact: bool
+    compliant_legs: bool = False  # stance legs under impedance control (splitter_sim.core.legs)
     paper: Mapping[str, Any] = field(default_factory=dict)
     variants: tuple[str, ...] = ()
     findings: tuple[PaperFinding, ...] = ()
@@ -280,6 +281,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         controller=controller,
         jumps=tuple(jumps),
         ground_contact=bool(d.get("ground_contact", False)),
+        compliant_legs=bool(d.get("compliant_legs", False)),
         paper=dict(d.get("paper", {}) or {}),
         variants=variants,
         findings=_findings(d.get("findings"), variants),

@@ -6,56 +6,44 @@ returns the gait phase, the jump wrench about the centre of mass and, when it
 changes, the attitude reference for the MPC. The ``gait_phase_manager`` node and
 the library closed loop call the same object in the same order.
 
-Phases (paper section III.A; names from ``splitter_msgs_py.names.GAIT_PHASES``)::
+Phases (paper section III.A; names from ``splitter_msgs_py.names.GAIT_PHASES``), a
+state machine on debounced contact events::
 
-      start in contact, jump left          start without contact
-                 |                                   |
-                 v           lift-off                v
-              LAUNCH  <------------------------>  IN_FLIGHT  <--------.
-    (ground before and during      touchdown  (no stance, jump left,  |
-     the first jump's thrust)  before 1st jump  or nothing planned)    |
-                 |                                   |                 | lift-off, or a
-                 | end of thrust, in stance          | touchdown,      | thrust ending
-                 v                                   v jump left       | in the air
-               JUMP  -----------------------------------------------'
-    (ground with a jump left: waiting, then thrusting)
-                 |
-                 | end of the last thrust (anywhere), or contact with no jump left
-                 v
-              LANDING   (landing w_ref; the flight, touchdowns and bounces)
-                 |  ^
-     at rest for |  | contact lost, or |v| or |w| above
-    landed_dwell v  | landed_exit_factor x the rest thresholds
-              LANDED
+    LAUNCH --lift-off--> IN_FLIGHT --touchdown, a jump left--> JUMP --lift-off--> IN_FLIGHT
+       |                    |                                    |
+       |                    +-- descending after the last jump --+--> LANDING --at rest--> LANDED
+       +-- (a jump that never leaves the ground) ------------------------^       (final)
 
-Every transition is evaluated once per tick, in this order: end a finished
-thrust, start a due one, then derive the phase from (thrusting, jumps left,
-on the ground, at rest). A thrust holds its phase (LAUNCH for the first jump,
-JUMP for the others) whatever the contact does.
+:data:`ALLOWED_TRANSITIONS` lists every change the machine can make; anything else
+is an error. Each change is reported once, on its tick, with its reason
+(:attr:`GaitOutput.reason`).
 
-* Stance of a hemi: its contact normal force (world z) above
-  ``stance_force_threshold_n``. Touchdown counts at once; lift-off only once no
-  hemi has been in stance for longer than ``liftoff_debounce_ns`` (a chattering
-  spring-damper contact does not flicker the phase).
-* Ground between jumps: a touchdown while a planned jump is still to come is
-  the Jump phase (paper: "one Hemi-SPLITTER makes contact with the ground and
-  jumps"): the robot waits in stance with a zero wrench until the jump is due.
-  If it bounces off before then it is In-Flight again. The same ground phase
-  before the first jump is Launch ("each side jumps while adding a rotational
-  motion"), so Launch is the ground phase before and during the first thrust,
-  whatever its planned time.
-* A thrust starts at the first tick at or after the jump's planned time when the
-  pushing hemi is in stance (``"a"``, ``"b"``, or ``"auto"``: the one in stance,
-  the lower one if both) and lasts the planned duration on the tick grid, in the
-  air or not: the legs keep extending over their stroke as the body rises. Its
-  phase is held (LAUNCH or JUMP) until the thrust ends. A due jump whose hemi is
-  not in stance waits (reported by :attr:`GaitOutput.jump_waiting`).
-* Landing is "the flight after the last planned jump": the thrust is over and the
-  attitude reference asks for ``landing_w_ref_rad_s`` (zero by default: with
-  angular momentum conserved in flight, slowing the spin means maximising the
-  inertia) from the attitude measured when Landing starts. Touchdowns and bounces
-  after the last jump stay in LANDING until the robot is at rest: LANDED. A run
-  with no jump planned is IN_FLIGHT until its first contact, then LANDING.
+* Contact events. A hemi is in stance when its ground normal force (legs, jump
+  thrust and lumped masses together) is above ``stance_force_threshold_n``.
+  Touchdown: some hemi in stance without a break for ``touchdown_debounce_ns``.
+  Lift-off: no hemi in stance for longer than ``liftoff_debounce_ns``. A phase
+  therefore never changes on a contact flicker shorter than the debounce. On the
+  first tick the measured stance is taken as it is.
+* First phase: on the ground with a jump planned LAUNCH, on the ground without
+  one LANDING, in the air IN_FLIGHT.
+* Jumps (``LAUNCH`` and ``JUMP`` are the ground phases): a thrust starts at the
+  first tick at or after the jump's planned time, in a ground phase, when the
+  pushing hemi is in stance (``"a"``, ``"b"``, or ``"auto"``: the hemis in stance
+  share the force). It lasts the planned duration or until lift-off, whichever
+  comes first (the simulator also ends it when the legs leave their stroke).
+  A due jump whose hemi is not in stance waits (:attr:`GaitOutput.jump_waiting`).
+  A touchdown with a jump left is JUMP (paper: "one Hemi-SPLITTER makes contact
+  with the ground and jumps"): the robot stands until the jump is due.
+* Landing (paper: "towards Landing, SPLITTER de-thrusts the system, and the
+  attitude controller slows down the angular velocity"): once every planned jump
+  is done and the centre of mass descends, the phase is LANDING; the attitude
+  reference then asks for ``landing_w_ref_rad_s`` (zero by default: slow the
+  spin). No thrust is commanded any more; the simulator's compliant legs absorb
+  the touchdown. A run with no jump planned is IN_FLIGHT until its first
+  touchdown, then LANDING.
+* LANDED: both hemis in stance, the robot on the ground, speed below
+  ``landed_speed_m_s`` and ``|w|`` below ``landed_angular_speed_rad_s`` without a
+  break for ``landed_dwell_ns`` (DESIGN.md: 1 s). It is final.
 
 Attitude reference (``AttitudeReference``): emitted on the first tick and when
 Landing starts, made by :func:`attitude_reference_at_stamp` from the state
@@ -449,11 +437,11 @@ class GaitConfig:
 
     jumps: tuple[PlannedJump, ...] = ()
     stance_force_threshold_n: float = 2.0  # [N] contact normal force meaning stance
-    liftoff_debounce_ns: int = 20_000_000  # [ns] no stance for longer means lift-off
+    touchdown_debounce_ns: int = 50_000_000  # [ns] stance at least this long means touchdown
+    liftoff_debounce_ns: int = 150_000_000  # [ns] no stance for longer means lift-off
     landed_speed_m_s: float = 0.05  # [m/s] centre-of-mass speed at rest
     landed_angular_speed_rad_s: float = 0.05  # [rad/s] |w| at rest
-    landed_dwell_ns: int = 500_000_000  # [ns] at rest this long means LANDED
-    landed_exit_factor: float = 2.0  # [-] LANDED is left above this x the rest thresholds
+    landed_dwell_ns: int = 1_000_000_000  # [ns] at rest on both hemis this long means LANDED
     w_ref_rad_s: tuple[float, float, float] = (0.0, 1.0, 0.0)  # [rad/s] flight, body frame
     landing_w_ref_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
     attitude_reference: str = "integrate_w_ref"
@@ -470,10 +458,12 @@ class GaitConfig:
                 raise ValueError(f"{name}: must be finite and > 0, got {value}")
         if self.liftoff_debounce_ns < 0:
             raise ValueError(f"liftoff_debounce_ns: must be >= 0, got {self.liftoff_debounce_ns}")
+        if self.touchdown_debounce_ns < 0:
+            raise ValueError(
+                f"touchdown_debounce_ns: must be >= 0, got {self.touchdown_debounce_ns}"
+            )
         if self.landed_dwell_ns < 0:
             raise ValueError(f"landed_dwell_ns: must be >= 0, got {self.landed_dwell_ns}")
-        if not (math.isfinite(self.landed_exit_factor) and self.landed_exit_factor >= 1.0):
-            raise ValueError(f"landed_exit_factor: must be >= 1, got {self.landed_exit_factor}")
         _vector3(self.w_ref_rad_s, "w_ref_rad_s")
         _vector3(self.landing_w_ref_rad_s, "landing_w_ref_rad_s")
         if self.attitude_reference not in ATTITUDE_REFERENCE_MODES:
@@ -524,13 +514,13 @@ def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
         stance_force_threshold_n=number(
             "stance_force_threshold_n", defaults.stance_force_threshold_n
         ),
+        touchdown_debounce_ns=seconds("touchdown_debounce_s", defaults.touchdown_debounce_ns),
         liftoff_debounce_ns=seconds("liftoff_debounce_s", defaults.liftoff_debounce_ns),
         landed_speed_m_s=number("landed_speed_m_s", defaults.landed_speed_m_s),
         landed_angular_speed_rad_s=number(
             "landed_angular_speed_rad_s", defaults.landed_angular_speed_rad_s
         ),
         landed_dwell_ns=seconds("landed_dwell_s", defaults.landed_dwell_ns),
-        landed_exit_factor=number("landed_exit_factor", defaults.landed_exit_factor),
         w_ref_rad_s=triple("w_ref_rad_s", defaults.w_ref_rad_s),
         landing_w_ref_rad_s=triple("landing_w_ref_rad_s", defaults.landing_w_ref_rad_s),
         attitude_reference=str(params.get("attitude_reference", defaults.attitude_reference)),
@@ -572,6 +562,8 @@ class GaitOutput:
     jumps_planned: int = 0
     time_in_phase_ns: int = 0  # [ns]
     jump_waiting: bool = False  # a jump is due but its hemi is not in stance
+    on_ground: bool = False  # debounced ground contact (touchdown / lift-off events)
+    reason: str = ""  # why the phase changed, on the tick it changed
 
     @property
     def thrusting(self) -> bool:
@@ -598,6 +590,8 @@ class GaitPhaseMachine:
         self._next_jump = 0
         self._jumps_done = 0
         self._thrust: _Thrust | None = None
+        self._on_ground = False
+        self._stance_since_ns: int | None = None  # start of the current stance streak
         self._last_stance_ns: int | None = None
         self._at_rest_since_ns: int | None = None
         self._reference: AttitudeReference | None = None
@@ -672,22 +666,20 @@ class GaitPhaseMachine:
         heights = tuple(
             float(position[2] + hemi_offset_world(q, radius_x, hemi)[2]) for hemi in names.HEMIS
         )
-        if any(stance):
-            self._last_stance_ns = t_ns
-        on_ground = self._last_stance_ns is not None and (
-            t_ns - self._last_stance_ns <= cfg.liftoff_debounce_ns
-        )
+        contact_event = self._debounce_contact(t_ns, stance, first)
 
-        # Thrust: finish the running one, then start a due one whose hemi is in stance.
-        if self._thrust is not None and t_ns >= self._thrust.end_ns:
+        # Thrust: finish the running one (its duration is over, or the robot has left the
+        # ground), then start a due one from a ground phase when its hemi is in stance.
+        if self._thrust is not None and (t_ns >= self._thrust.end_ns or contact_event == "liftoff"):
             _LOG.debug("jump %d thrust ends at t = %d ns", self._thrust.index, t_ns)
             self._thrust = None
             self._jumps_done += 1
         jump_waiting = False
-        if self._thrust is None and self._next_jump < len(cfg.jumps):
+        ground_phase = first or self._phase in _GROUND_PHASES
+        if self._thrust is None and self._next_jump < len(cfg.jumps) and ground_phase:
             jump = cfg.jumps[self._next_jump]
             if t_ns >= jump.time_ns:
-                hemi = _pushing_hemi(jump.hemi, stance, heights)
+                hemi = _pushing_hemi(jump.hemi, stance)
                 if hemi is None:
                     jump_waiting = True
                 else:
@@ -697,10 +689,12 @@ class GaitPhaseMachine:
                     self._thrust = _Thrust(self._next_jump, hemi, t_ns + jump.duration_ns)
                     self._next_jump += 1
 
-        phase = self._next_phase(t_ns, stance, on_ground, velocity, rate)
+        phase, reason = self._next_phase(t_ns, stance, velocity, rate, contact_event)
         changed = phase != self._phase
         if changed:
-            _LOG.debug("gait phase %s -> %s at t = %d ns", self._phase, phase, t_ns)
+            if self._phase is not None and (self._phase, phase) not in ALLOWED_TRANSITIONS:
+                raise AssertionError(f"gait phase {self._phase} -> {phase} is not allowed")
+            _LOG.debug("gait phase %s -> %s at t = %d ns (%s)", self._phase, phase, t_ns, reason)
             self._phase = phase
             self._phase_since_ns = t_ns
 
@@ -712,7 +706,7 @@ class GaitPhaseMachine:
 
         if self._thrust is not None:
             jump = cfg.jumps[self._thrust.index]
-            force, torque = jump_wrench(jump.force_n, q, radius_x, self._thrust.hemi)
+            force, torque = _split_jump_wrench(jump.force_n, q, radius_x, self._thrust.hemi)
             pushing: str | None = self._thrust.hemi
         else:
             force, torque, pushing = np.zeros(3), np.zeros(3), None
@@ -730,9 +724,42 @@ class GaitPhaseMachine:
             jumps_planned=len(cfg.jumps),
             time_in_phase_ns=t_ns - self._phase_since_ns,
             jump_waiting=jump_waiting,
+            on_ground=self._on_ground,
+            reason=reason if changed else "",
         )
 
     # -- internals -------------------------------------------------------------------------
+    def _debounce_contact(self, t_ns: int, stance: tuple[bool, bool], first: bool) -> str | None:
+        """Update the debounced ground contact; the event of this tick, if any.
+
+        Touchdown: some hemi in stance without a break for ``touchdown_debounce``;
+        lift-off: no hemi in stance for longer than ``liftoff_debounce``. On the
+        first tick the measured stance is taken as it is (a robot starting on its
+        feet is on the ground).
+        """
+        cfg = self.config
+        if any(stance):
+            self._last_stance_ns = t_ns
+            if self._stance_since_ns is None:
+                self._stance_since_ns = t_ns
+        else:
+            self._stance_since_ns = None
+        if first:
+            self._on_ground = any(stance)
+            return None
+        if not self._on_ground:
+            if (
+                self._stance_since_ns is not None
+                and t_ns - self._stance_since_ns >= cfg.touchdown_debounce_ns
+            ):
+                self._on_ground = True
+                return "touchdown"
+            return None
+        if self._last_stance_ns is None or t_ns - self._last_stance_ns > cfg.liftoff_debounce_ns:
+            self._on_ground = False
+            return "liftoff"
+        return None
+
     def _new_reference(
         self,
         t_ns: int,
@@ -756,57 +783,99 @@ class GaitPhaseMachine:
         self,
         t_ns: int,
         stance: tuple[bool, bool],
-        on_ground: bool,
         velocity: NDArray[np.float64],
         rate: NDArray[np.float64],
-    ) -> GaitPhase:
+        event: str | None,
+    ) -> tuple[GaitPhase, str]:
+        """The phase of this tick and, when it changes, why (module docstring)."""
         cfg = self.config
-        if self._thrust is not None:
-            self._at_rest_since_ns = None
-            return GaitPhase.LAUNCH if self._thrust.index == 0 else GaitPhase.JUMP
-        if self._next_jump < len(cfg.jumps):
-            self._at_rest_since_ns = None
-            if not on_ground:
-                return GaitPhase.IN_FLIGHT
-            return GaitPhase.LAUNCH if self._next_jump == 0 else GaitPhase.JUMP
-        # No jump left.
-        if self._phase not in _LANDING_PHASES and self._jumps_done == 0 and not on_ground:
-            return GaitPhase.IN_FLIGHT  # a flight-only run: no jump was ever planned
-        speed = float(np.linalg.norm(velocity))
-        spin = float(np.linalg.norm(rate))
-        if self._phase == GaitPhase.LANDED:
-            disturbed = (
-                not on_ground
-                or speed > cfg.landed_exit_factor * cfg.landed_speed_m_s
-                or spin > cfg.landed_exit_factor * cfg.landed_angular_speed_rad_s
+        phase = self._phase
+        jumps_left = self._next_jump < len(cfg.jumps) or self._thrust is not None
+        if phase is None:  # the first tick
+            if self._on_ground:
+                if jumps_left:
+                    return GaitPhase.LAUNCH, "start on the ground, a jump planned"
+                return GaitPhase.LANDING, "start on the ground, no jump planned"
+            return GaitPhase.IN_FLIGHT, "start in the air"
+        if phase in _GROUND_PHASES:  # LAUNCH, JUMP
+            if event == "liftoff":
+                if jumps_left or not self._descending_after_jumps(velocity):
+                    return GaitPhase.IN_FLIGHT, "lift-off"
+                return GaitPhase.LANDING, "lift-off after the last jump, descending"
+            if not jumps_left and self._thrust is None and self._on_ground:
+                return GaitPhase.LANDING, "last jump done without leaving the ground"
+            return phase, ""
+        if phase == GaitPhase.IN_FLIGHT:
+            if event == "touchdown":
+                if jumps_left:
+                    return GaitPhase.JUMP, "touchdown, a jump planned"
+                return GaitPhase.LANDING, "touchdown, no jump left"
+            if not jumps_left and self._descending_after_jumps(velocity):
+                return GaitPhase.LANDING, "descending after the last jump: landing"
+            return phase, ""
+        if phase == GaitPhase.LANDING:
+            at_rest = (
+                all(stance)
+                and self._on_ground
+                and float(np.linalg.norm(velocity)) < cfg.landed_speed_m_s
+                and float(np.linalg.norm(rate)) < cfg.landed_angular_speed_rad_s
             )
-            if not disturbed:
-                return GaitPhase.LANDED
-            self._at_rest_since_ns = None
-            return GaitPhase.LANDING
-        at_rest = (
-            any(stance) and speed < cfg.landed_speed_m_s and spin < cfg.landed_angular_speed_rad_s
-        )
-        if not at_rest:
-            self._at_rest_since_ns = None
-            return GaitPhase.LANDING
-        if self._at_rest_since_ns is None:
-            self._at_rest_since_ns = t_ns
-        if t_ns - self._at_rest_since_ns >= cfg.landed_dwell_ns:
-            return GaitPhase.LANDED
-        return GaitPhase.LANDING
+            if not at_rest:
+                self._at_rest_since_ns = None
+                return phase, ""
+            if self._at_rest_since_ns is None:
+                self._at_rest_since_ns = t_ns
+            if t_ns - self._at_rest_since_ns >= cfg.landed_dwell_ns:
+                return GaitPhase.LANDED, "at rest on both hemis"
+            return phase, ""
+        return phase, ""  # LANDED is final
+
+    def _descending_after_jumps(self, velocity: NDArray[np.float64]) -> bool:
+        """All planned jumps done (at least one) and the centre of mass going down."""
+        return self._jumps_done > 0 and float(velocity[2]) <= 0.0
 
 
+_GROUND_PHASES = (GaitPhase.LAUNCH, GaitPhase.JUMP)
 _LANDING_PHASES = (GaitPhase.LANDING, GaitPhase.LANDED)
+# The phase changes the machine makes (DESIGN.md section 4 and a jump that never leaves
+# the ground, or a touchdown before a planned landing); LANDED is final.
+ALLOWED_TRANSITIONS: frozenset[tuple[GaitPhase, GaitPhase]] = frozenset(
+    {
+        (GaitPhase.LAUNCH, GaitPhase.IN_FLIGHT),
+        (GaitPhase.LAUNCH, GaitPhase.LANDING),
+        (GaitPhase.IN_FLIGHT, GaitPhase.JUMP),
+        (GaitPhase.IN_FLIGHT, GaitPhase.LANDING),
+        (GaitPhase.JUMP, GaitPhase.IN_FLIGHT),
+        (GaitPhase.JUMP, GaitPhase.LANDING),
+        (GaitPhase.LANDING, GaitPhase.LANDED),
+    }
+)
 
 
-def _pushing_hemi(
-    planned: str, stance: tuple[bool, bool], heights: tuple[float, float]
-) -> str | None:
-    """The hemi that pushes now, or None when the planned one is not in stance."""
+def _pushing_hemi(planned: str, stance: tuple[bool, bool]) -> str | None:
+    """The hemi that pushes now ("a", "b", or "auto": all in stance), or None if none may."""
     if planned != "auto":
         return planned if stance[HEMI_INDEX[planned]] else None
     in_stance = [hemi for hemi, s in zip(names.HEMIS, stance, strict=True) if s]
     if not in_stance:
         return None
-    return min(in_stance, key=lambda hemi: heights[HEMI_INDEX[hemi]])
+    return in_stance[0] if len(in_stance) == 1 else "auto"
+
+
+def _split_jump_wrench(
+    force_n: ArrayLike, orientation_wxyz: ArrayLike, radius_x_m: float, hemi: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Force [N] and torque about the COM [Nm] of a thrust through one hemi or shared by both.
+
+    ``"auto"`` shares the force equally between the two hemis (both in stance).
+    """
+    if hemi != "auto":
+        return jump_wrench(force_n, orientation_wxyz, radius_x_m, hemi)
+    half = np.asarray(force_n, dtype=float) / 2.0
+    force = np.zeros(3)
+    torque = np.zeros(3)
+    for side in names.HEMIS:
+        f, tau = jump_wrench(half, orientation_wxyz, radius_x_m, side)
+        force += f
+        torque += tau
+    return force, torque

@@ -38,6 +38,7 @@ from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, act
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_sim.core import actuators
+from splitter_sim.core.legs import LegImpedance, leg_stance_force
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
     angular_velocity,
@@ -85,6 +86,12 @@ class SimConfig:
     friction_damping_n_s_m: float = 1.0e3  # [N s/m] regularisation slope below the cone
     contact_substeps: int = 2  # RK4 sub-steps per step while a mass can touch the ground
     thrust_stroke_m: float = 0.4  # [m] leg push-off stroke (paper's 0.4 m limb)
+    # Compliant legs (splitter_sim.core.legs): off, the lumped masses touch the ground directly.
+    compliant_legs: bool = False
+    leg_stiffness_n_m: float = 40.0  # [N/m] a lunar hemi (14.6 N) stands crouched, 4 cm up
+    leg_damping_n_s_m: float = 200.0  # [N s/m] 0.95 m/s down saturates the force cap
+    leg_tangential_damping_n_s_m: float = 20.0  # [N s/m] hip impedance, feet planted
+    leg_force_max_n: float = 190.0  # [N] below the limbs' 196 N dynamic limit (paper VII.C)
 
     def __post_init__(self) -> None:
         _positive("dt_s", self.dt_s)
@@ -107,6 +114,25 @@ class SimConfig:
                 f"got {self.contact_substeps!r}"
             )
         _non_negative("thrust_stroke_m", self.thrust_stroke_m)
+        if not isinstance(self.compliant_legs, bool):
+            raise ValueError(
+                f"SimConfig.compliant_legs must be a bool, got {self.compliant_legs!r}"
+            )
+        _non_negative("leg_stiffness_n_m", self.leg_stiffness_n_m)
+        _non_negative("leg_damping_n_s_m", self.leg_damping_n_s_m)
+        _non_negative("leg_tangential_damping_n_s_m", self.leg_tangential_damping_n_s_m)
+        _positive("leg_force_max_n", self.leg_force_max_n)
+
+    @property
+    def legs(self) -> LegImpedance:
+        """The legs' impedance (used when ``compliant_legs``)."""
+        return LegImpedance(
+            stiffness_n_m=self.leg_stiffness_n_m,
+            damping_n_s_m=self.leg_damping_n_s_m,
+            tangential_damping_n_s_m=self.leg_tangential_damping_n_s_m,
+            friction_coefficient=self.friction_coefficient,
+            force_max_n=self.leg_force_max_n,
+        )
 
     @property
     def dt_ns(self) -> int:
@@ -274,6 +300,7 @@ class Simulator:
         self._dt = self._dt_ns * 1e-9
         # Above this COM height minus body radius nothing touches nor pushes: skip checks.
         self._far_above_m = config.thrust_stroke_m + 1.0
+        self._legs = config.legs
         self.contact_step_count = 0  # steps integrated with contact sub-steps
 
     # --- construction ------------------------------------------------------------
@@ -351,6 +378,43 @@ class Simulator:
         share = 1.0 / len(pushing)
         return tuple((HEMI_BODY_INDEX[h], fx * share, fy * share, fz * share) for h in pushing)
 
+    def _leg_terms(
+        self,
+        low: tuple[float, float],
+        thrust: tuple[tuple[int, float, float, float], ...],
+        s: list[float],
+        shape: Shape,
+    ) -> tuple[tuple[int, float, float, float], ...]:
+        """Stance forces of the compliant legs (world, on each hemi body) for this step.
+
+        A hemi's legs act while its lowest mass is within the stroke of the ground and
+        it is not pushing a jump (the thrust is then the legs' force).
+        """
+        if not self.config.compliant_legs:
+            return ()
+        stroke = self.config.thrust_stroke_m
+        pushing = {index for index, *_ in thrust}
+        terms = []
+        for h, body in enumerate(HEMI_BODY_INDEX):
+            if low[h] >= stroke or body in pushing:
+                continue
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+            wx, wy, wz = angular_velocity(shape, s[10], s[11], s[12])
+            shape.relative()
+            x, y, z = shape.rx[body], shape.ry[body], shape.rz[body]
+            ux = wy * z - wz * y + shape.vx[body]
+            uy = wz * x - wx * z + shape.vy[body]
+            uz = wx * y - wy * x + shape.vz[body]
+            velocity = (
+                s[3] + r00 * ux + r01 * uy + r02 * uz,
+                s[4] + r10 * ux + r11 * uy + r12 * uz,
+                s[5] + r20 * ux + r21 * uy + r22 * uz,
+            )
+            fx, fy, fz = leg_stance_force(stroke - low[h], velocity, self._legs)
+            if fz > 0.0:
+                terms.append((body, fx, fy, fz))
+        return tuple(terms)
+
     def _contact_candidates(
         self, heights: list[float] | None, s: list[float], shape: Shape
     ) -> tuple[int, ...]:
@@ -387,7 +451,9 @@ class Simulator:
             shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
         heights = self._mass_heights(s, shape0)
         prm = self._prm
-        prm.thrust = self._thrust_terms(self._lowest_per_hemi(heights))
+        low = self._lowest_per_hemi(heights)
+        thrust = self._thrust_terms(low)
+        prm.thrust = thrust + self._leg_terms(low, thrust, s, shape0)
         prm.contact = self._contact_candidates(heights, s, shape0)
         n = self.config.contact_substeps if prm.contact else 1
         if prm.contact:
@@ -426,8 +492,10 @@ class Simulator:
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
         thrust = self._thrust_terms(low)
+        legs = self._leg_terms(low, thrust, s, shape)
         saved = prm.contact, prm.thrust
-        prm.contact, prm.thrust = (ALL_MASSES if self.config.ground_contact else ()), thrust
+        prm.contact = ALL_MASSES if self.config.ground_contact else ()
+        prm.thrust = thrust + legs
         out: dict = {}
         try:
             state_derivative(s, shape, prm, out)
@@ -444,6 +512,10 @@ class Simulator:
             c[0]: (c[1], c[2], c[3]) for c in out["contacts"] or ()
         }
         thrust_on: dict[int, tuple[float, float, float]] = {t[0]: t[1:] for t in thrust}
+        # The legs' stance force and a jump's thrust are the ground's reaction on the legs,
+        # applied at the hemi body: contact like that on the masses (thrust also apart).
+        for i, *f in legs + thrust:
+            contact[i] = _add(contact.get(i, _ZERO3), f)
         # Inertial acceleration (world) of each hemi body, and the tension from the radial
         # dynamics of hemi a: the rest pulls on its five masses with
         # F = sum (m a - m g - f_ext); the tether tension is T = -F . x_tether.
@@ -461,7 +533,7 @@ class Simulator:
             if i in HEMI_BODY_INDEX:
                 acc_body.append(acc)
             if i < 5:
-                f = _add(contact.get(i, _ZERO3), thrust_on.get(i, _ZERO3))
+                f = contact.get(i, _ZERO3)
                 m = masses[i]
                 pull[0] += m * acc[0] - f[0]
                 pull[1] += m * acc[1] - f[1]
