@@ -15,9 +15,10 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 
 from splitter_bringup.core.bag_series import (
+    DIAGNOSTIC_KEYS,
     GRAVITY_KEY,
-    MPC_COUNTS,
     MPC_DIAGNOSTICS_PREFIX,
+    SIM_DIAGNOSTICS_PREFIX,
     BagSeriesError,
     TopicSamples,
     series_from_samples,
@@ -58,9 +59,9 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
     def diagnostics(msg: Any, _: int, out: TopicSamples) -> None:
         t_ns = cv.stamp_from_msg(msg.header.stamp)
         for status in cv.diagnostics_from_msg(msg):
-            if status.name.startswith(MPC_DIAGNOSTICS_PREFIX):
-                counts = {k: float(status.values.get(k, np.nan)) for k in MPC_COUNTS}
-                out.add(t_ns, **counts)
+            if status.name.startswith((MPC_DIAGNOSTICS_PREFIX, SIM_DIAGNOSTICS_PREFIX)):
+                # every key on every row (NaN where this node does not report it)
+                out.add(t_ns, **{k: float(status.values.get(k, np.nan)) for k in DIAGNOSTIC_KEYS})
 
     return {
         names.IMU: imu,
@@ -71,6 +72,8 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
         names.GAIT_PHASE: phase,
         names.JUMP_COMMAND: jump,
         names.DIAGNOSTICS: diagnostics,
+        names.CONTACT_WRENCH_A: jump,  # the same decoding: force [N], world
+        names.CONTACT_WRENCH_B: jump,
     }
 
 

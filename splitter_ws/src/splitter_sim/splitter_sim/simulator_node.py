@@ -370,6 +370,7 @@ class SimulatorNode(Node):
         self._start_wall = time.monotonic()
         self._run_wall_start: float | None = None
         self._published_t_ns: int | None = None
+        self._peak_hemi_g = 0.0  # [G] largest hemi specific force of any published state
         self.lockstep = LockstepWait(LOCKSTEP_TOPICS, self._timeout_s)
         self._stamps = StampGate(MAX_COMMAND_LEAD_NS)
         self._slack_events = 0
@@ -672,6 +673,7 @@ class SimulatorNode(Node):
     def _publish_state(self, t: int) -> None:
         state = self._sim.state()
         self._published_t_ns = t
+        self._peak_hemi_g = max(self._peak_hemi_g, float(np.max(state.hemi_acceleration_g)))
         if not state.is_finite():
             self._publish_failures += 1
             self.get_logger().error(
@@ -776,6 +778,7 @@ class SimulatorNode(Node):
             "hemi_b_contact_normal_force_n": float(state.contact_force_n[1, 2]),
             "hemi_a_acceleration_g": float(state.hemi_acceleration_g[0]),
             "hemi_b_acceleration_g": float(state.hemi_acceleration_g[1]),
+            "hemi_peak_acceleration_g": self._peak_hemi_g,
             "actuator_power_w": state.actuator_power_w,
             "actuator_work_j": state.actuator_work_j,
             "rejected_joint_commands": rejected.get("joint_commands", 0),

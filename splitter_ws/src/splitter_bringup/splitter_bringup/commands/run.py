@@ -88,7 +88,7 @@ def _run_variant(args: argparse.Namespace, scenario_name: str, variant: str) -> 
 
 def _metrics(series: RunSeries, scenario) -> dict:
     """Flight figures, and the jumping figures for a scenario with jumps."""
-    from splitter_bringup.core.jump_metrics import jumping_summary
+    from splitter_bringup.core.jump_metrics import gait_summary, jumping_summary
     from splitter_bringup.core.metrics import flight_summary
 
     metrics = flight_summary(
@@ -98,7 +98,11 @@ def _metrics(series: RunSeries, scenario) -> dict:
         scenario.controller.attitude_reference,
     )
     if scenario.jumps:
-        metrics = {**jumping_summary(series, scenario.jumps, scenario.paper), **metrics}
+        metrics = {
+            **jumping_summary(series, scenario.jumps, scenario.paper),
+            **gait_summary(series, len(scenario.jumps)),
+            **metrics,
+        }
         metrics.pop("max_horizontal_speed_m_s", None)
     return metrics
 

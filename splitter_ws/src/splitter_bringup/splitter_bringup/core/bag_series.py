@@ -40,6 +40,9 @@ GRAVITY_KEY = "gravity_m_s2"  # custom_data key a launcher may store in the bag
 MPC_DIAGNOSTICS_PREFIX = "inertial_morphing_mpc"  # the MPC node's /diagnostics status name
 # its cumulative counters, read into RunSeries.extras["mpc_<name>"] (the library loop's too)
 MPC_COUNTS = ("failures", "deadline_misses")
+SIM_DIAGNOSTICS_PREFIX = "simulator"  # the simulator node's /diagnostics status name
+SIM_PEAK_G = "hemi_peak_acceleration_g"  # its running peak of the hemi specific force [G]
+DIAGNOSTIC_KEYS = (*MPC_COUNTS, SIM_PEAK_G)
 
 
 class BagSeriesError(ValueError):
@@ -126,6 +129,17 @@ class TopicSamples:
         return np.asarray(self.fields[key], dtype=float)
 
 
+def _latest_report(samples: TopicSamples, key: str, grid: NDArray[np.int64]) -> NDArray:
+    """The latest finite report of ``key`` at or before each grid stamp (0 before the first)."""
+    values = samples.array(key)
+    keep = np.isfinite(values)
+    stamps = np.asarray(samples.stamps_ns)[keep]
+    if not keep.any():
+        return np.zeros(len(grid))
+    filled = forward_fill(stamps, values[keep], grid, backfill=False)
+    return np.nan_to_num(filled.astype(float), nan=0.0)
+
+
 def series_from_samples(
     samples: dict[str, TopicSamples],
     model: RobotModel | None = None,
@@ -170,11 +184,15 @@ def series_from_samples(
     extras = {}
     diagnostics = samples.get(names.DIAGNOSTICS)
     if diagnostics is not None and diagnostics.stamps_ns:
-        for key in MPC_COUNTS:  # counters: the latest report at or before each stamp
-            filled = forward_fill(
-                diagnostics.stamps_ns, diagnostics.array(key), grid, backfill=False
-            )
-            extras[f"mpc_{key}"] = np.nan_to_num(filled.astype(float), nan=0.0)
+        for key, name in ((k, f"mpc_{k}") for k in MPC_COUNTS):
+            extras[name] = _latest_report(diagnostics, key, grid)
+        if np.isfinite(diagnostics.array(SIM_PEAK_G)).any():
+            extras[SIM_PEAK_G] = _latest_report(diagnostics, SIM_PEAK_G, grid)
+    wrenches = [samples.get(topic) for topic in names.CONTACT_WRENCHES]
+    if all(w is not None and w.stamps_ns for w in wrenches):
+        extras["contact_force_n"] = np.stack(
+            [values_at(w.stamps_ns, w.array("f"), grid).astype(float) for w in wrenches], axis=1
+        )
     return RunSeries(
         t_s=grid.astype(float) / _NS_PER_S,
         angular_velocity_rad_s=at(names.IMU, "w"),

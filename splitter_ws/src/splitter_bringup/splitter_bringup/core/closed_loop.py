@@ -229,6 +229,7 @@ _RECORDED = (
     "velocity",
     "joints",
     "hemi_g",
+    "contact",
     "energy",
     "momentum",
     "tension",
@@ -253,6 +254,7 @@ def _record(rec: dict[str, list], state, setpoint, solve: dict, counts: dict) ->
     rec["velocity"].append(state.velocity_m_s)
     rec["joints"].append(state.joint_position)
     rec["hemi_g"].append(state.hemi_acceleration_g)
+    rec["contact"].append(state.contact_force_n)
     rec["energy"].append(state.rotational_energy_j)
     rec["momentum"].append(state.angular_momentum_world)
     rec["tension"].append(state.tether_tension_n)
@@ -281,6 +283,9 @@ def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSerie
         gait_phase=phases,
         extras={
             "hemi_acceleration_g": a["hemi_g"],
+            # what the simulator node reports on /diagnostics: the peak so far
+            "hemi_peak_acceleration_g": np.maximum.accumulate(a["hemi_g"].max(axis=1)),
+            "contact_force_n": a["contact"],  # (n, 2, 3) ground on hemi a, b, world [N]
             "rotational_energy_j": a["energy"],
             "angular_momentum_world": a["momentum"],
             "tether_tension_n": a["tension"],

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from splitter_bringup.core.metrics import Metric
 from splitter_bringup.core.scenario import JumpSpec
 from splitter_bringup.core.series import RunSeries
+from splitter_ik.core.actuator_sizing import limb_dynamic_force_limit_n
 
 AIRBORNE_PHASES = ("IN_FLIGHT", "LANDING")
 
@@ -86,4 +87,99 @@ def jumping_summary(
         "m",
         f"range of the tether length (min {tether.min():.3f} m, max {tether.max():.3f} m)",
     )
+    return out
+
+
+STANCE_FORCE_N = 2.0  # [N] a hemi with more ground force than this is in contact (gait's threshold)
+MIN_FLIGHT_S = 0.3  # [s] shorter airborne spans are bounces, not flights
+REST_WINDOW_S = 1.0  # [s] the span at the end where the robot must be at rest
+
+
+def phase_spans(t_s: NDArray[np.float64], phases: list[str]) -> list[tuple[str, float, float]]:
+    """(phase, start [s], end [s]) of each run of equal phase labels (empty labels skipped)."""
+    spans: list[tuple[str, float, float]] = []
+    for i, label in enumerate(phases):
+        if not label:
+            continue
+        if spans and spans[-1][0] == label:
+            spans[-1] = (label, spans[-1][1], float(t_s[i]))
+        else:
+            spans.append((label, float(t_s[i]), float(t_s[i])))
+    # a span lasts until the next one starts (the last one until the end of the run)
+    return [
+        (label, start, spans[k + 1][1] if k + 1 < len(spans) else float(t_s[-1]))
+        for k, (label, start, _) in enumerate(spans)
+    ]
+
+
+def flight_durations(t_s: NDArray[np.float64], contact_force_n: NDArray[np.float64]) -> list[float]:
+    """Durations [s] of the spans with no hemi in contact, longer than :data:`MIN_FLIGHT_S`."""
+    airborne = np.all(np.linalg.norm(contact_force_n, axis=2) <= STANCE_FORCE_N, axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], airborne.astype(int), [0]))))
+    durations = [
+        float(t_s[min(b, len(t_s) - 1)] - t_s[a])
+        for a, b in zip(edges[::2], edges[1::2], strict=True)
+    ]
+    return [d for d in durations if d >= MIN_FLIGHT_S]
+
+
+def gait_summary(series: RunSeries, planned_jumps: int) -> dict[str, Metric]:
+    """Gait figures (issue: launch to rest): phases, flights, touchdown forces, rest."""
+    t = series.t_s
+    out: dict[str, Metric] = {}
+    spans = phase_spans(t, series.gait_phase)
+    if spans:
+        landed = [start for label, start, _ in spans if label == "LANDED"]
+        held = [end - start for label, start, end in spans[:-1] if label != "JUMP"]
+        out["landed_at_s"] = Metric(
+            landed[0] if landed else math.nan, "s", "first time the gait phase is LANDED"
+        )
+        out["phase_changes"] = Metric(
+            float(len(spans) - 1),
+            "-",
+            f"gait phase changes (at most 2 x jumps + 4 = {2 * planned_jumps + 4}): "
+            + " > ".join(label for label, *_ in spans),
+        )
+        out["shortest_phase_s"] = Metric(
+            min(held) if held else math.nan,
+            "s",
+            "shortest time a phase other than JUMP was held (the last one excluded)",
+        )
+        out["final_phase"] = Metric(
+            float(spans[-1][0] == "LANDED"), "-", "1 if the run ends LANDED"
+        )
+    end = t >= t[-1] - REST_WINDOW_S
+    out["rest_speed_max_mps"] = Metric(
+        float(np.linalg.norm(series.velocity_m_s[end], axis=1).max()),
+        "m/s",
+        f"largest centre-of-mass speed over the last {REST_WINDOW_S:g} s (LANDED: < 0.05)",
+    )
+    out["rest_angular_speed_max_rad_s"] = Metric(
+        float(np.linalg.norm(series.angular_velocity_rad_s[end], axis=1).max()),
+        "rad/s",
+        f"largest |w| over the last {REST_WINDOW_S:g} s (LANDED: < 0.05)",
+    )
+    contact = series.extras.get("contact_force_n")
+    if contact is None:
+        return out
+    contact = np.asarray(contact, dtype=float)
+    limit = limb_dynamic_force_limit_n()
+    force = np.linalg.norm(contact, axis=2)  # (n, 2) [N]
+    landing = np.array([p in ("LANDING", "LANDED") for p in series.gait_phase], dtype=bool)
+    for h, hemi in enumerate(("a", "b")):
+        out[f"peak_contact_force_{hemi}_n"] = Metric(
+            float(force[:, h].max()),
+            "N",
+            f"largest ground force on hemi {hemi} over the run (limit {limit:.0f} N)",
+        )
+        out[f"peak_landing_force_{hemi}_n"] = Metric(
+            float(force[landing, h].max()) if landing.any() else math.nan,
+            "N",
+            f"largest ground force on hemi {hemi} from LANDING on (limit {limit:.0f} N)",
+        )
+    out["limb_force_limit_n"] = Metric(
+        limit, "N", "limbs' dynamic limit: the paper's 20 kg dynamic payload x 9.81 m/s^2"
+    )
+    for k, duration in enumerate(flight_durations(t, contact)):
+        out[f"flight_{k + 1}_s"] = Metric(duration, "s", f"duration of flight {k + 1}, no contact")
     return out

@@ -86,6 +86,8 @@ def _momentum_norm(series: RunSeries) -> NDArray[np.float64]:
 
 
 def _hemi_g(series: RunSeries) -> NDArray[np.float64]:
+    if "hemi_peak_acceleration_g" in series.extras:  # both backends record the running peak
+        return np.asarray(series.extras["hemi_peak_acceleration_g"], dtype=float)
     if "hemi_acceleration_g" in series.extras:
         return np.max(np.asarray(series.extras["hemi_acceleration_g"], dtype=float), axis=1)
     # Centripetal acceleration of a hemi body at (r_x, 0, 0) (rigid-body estimate).

@@ -60,6 +60,18 @@ PAPER_VALUES: dict[str, float] = {
 }
 
 
+def limb_dynamic_force_limit_n(
+    dynamic_payload_kg: float = PAPER_VALUES["dynamic_payload_kg"],
+) -> float:
+    """Largest dynamic ground force on one quadruped's limbs [N]: its dynamic payload's weight.
+
+    The paper's limbs carry a 20 kg dynamic payload per quadruped (peak torque through
+    the limb length, section VII.C): 20 kg x 9.81 m/s^2 = 196 N, the bound touchdowns
+    are held to.
+    """
+    return dynamic_payload_kg * STANDARD_GRAVITY
+
+
 @dataclass(frozen=True)
 class MotorSpec:
     """A frameless BLDC motor with a gearbox (datasheet values, motor side)."""

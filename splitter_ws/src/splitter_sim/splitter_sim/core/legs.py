@@ -50,7 +50,9 @@ class LegImpedance:
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"LegImpedance.{name} must be finite and >= 0, got {value!r}")
         if not (math.isfinite(self.force_max_n) and self.force_max_n > 0.0):
-            raise ValueError(f"LegImpedance.force_max_n must be finite and > 0, got {self.force_max_n}")
+            raise ValueError(
+                f"LegImpedance.force_max_n must be finite and > 0, got {self.force_max_n}"
+            )
 
 
 def leg_stance_force(
