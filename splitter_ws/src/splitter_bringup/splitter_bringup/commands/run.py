@@ -180,6 +180,16 @@ def main(args: argparse.Namespace) -> int:
                 plot_trajectory(
                     series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
                 )
+            if scenario.jumps:
+                from splitter_bringup.core.plots import plot_gait
+                from splitter_ik.core.actuator_sizing import limb_dynamic_force_limit_n
+
+                plot_gait(
+                    series,
+                    out / f"{variant}_gait.png",
+                    f"{base.name}: {variant}, gait phases",
+                    limb_dynamic_force_limit_n(),
+                )
         if not args.no_animation:
             _animate(series, out, variant, f"{base.name}: {variant}")
     findings = evaluate_findings(base.findings, all_metrics)

@@ -189,3 +189,50 @@ def plot_findings(findings: Sequence[FindingResult], path: Path, title: str = ""
         ax.set_title(f"{textwrap.fill(finding.statement, 42)}\n({verdict})", fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
     return save_figure(fig, path, title)
+
+
+PHASE_COLOURS = {
+    "LAUNCH": "tab:orange",
+    "IN_FLIGHT": "tab:blue",
+    "JUMP": "tab:red",
+    "LANDING": "tab:purple",
+    "LANDED": "tab:green",
+}
+
+
+def plot_gait(
+    series: RunSeries, path: Path, title: str = "", force_limit_n: float | None = None
+) -> Path:
+    """The paper's Fig. "full" for a jumping run: height, v_x, |w| and ground force per hemi
+    over time, the gait phases as coloured bands (and the limbs' force limit)."""
+    from splitter_bringup.core.jump_metrics import phase_spans
+
+    t = series.t_s
+    fig, axes = plt.subplots(4, 1, figsize=(9, 9), sharex=True)
+    axes[0].plot(t, series.position_m[:, 2], color="k")
+    axes[0].set_ylabel("COM height z [m]")
+    axes[1].plot(t, series.velocity_m_s[:, 0], color="k")
+    axes[1].set_ylabel("v_x [m/s]")
+    axes[2].plot(t, np.linalg.norm(series.angular_velocity_rad_s, axis=1), color="k")
+    axes[2].set_ylabel("|w| [rad/s]")
+    contact = series.extras.get("contact_force_n")
+    if contact is not None:
+        force = np.linalg.norm(np.asarray(contact, dtype=float), axis=2)
+        axes[3].plot(t, force[:, 0], label="hemi a")
+        axes[3].plot(t, force[:, 1], label="hemi b", linestyle="--")
+    if force_limit_n is not None:
+        axes[3].axhline(force_limit_n, color="r", linewidth=0.8, label="limbs' dynamic limit")
+    axes[3].set_ylabel("ground force [N]")
+    axes[3].set_xlabel("t [s]")
+    axes[3].legend(loc="upper right", fontsize=8)
+    seen: set[str] = set()
+    for label, start, end in phase_spans(t, series.gait_phase):
+        for ax in axes:
+            ax.axvspan(start, end, color=PHASE_COLOURS.get(label, "grey"), alpha=0.12, lw=0)
+        if label not in seen:
+            axes[0].axvspan(0, 0, color=PHASE_COLOURS.get(label, "grey"), alpha=0.3, label=label)
+            seen.add(label)
+    axes[0].legend(loc="upper right", fontsize=8, ncols=len(seen))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return save_figure(fig, path, title)
