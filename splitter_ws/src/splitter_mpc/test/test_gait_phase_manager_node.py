@@ -209,10 +209,12 @@ def test_node_answers_every_tick_and_sequences_the_phases(graph) -> None:
         np.testing.assert_allclose(commands[t_ms].torque_nm, np.cross(lever, FORCE_N), atol=1e-12)
     assert commands[0].torque_nm[1] > 0.0  # hemi b pushing up spins the body about +y
 
-    assert sim.phases == ["LAUNCH", "IN_FLIGHT", "JUMP", "LANDING", "LANDED"]
+    # Debounced: lift-off 150 ms after the last stance (200 ms, 700 ms), touchdown after
+    # 50 ms of stance (350 ms, 850 ms); LANDED after 100 ms at rest on both hemis.
+    assert sim.phases == ["LAUNCH", "IN_FLIGHT", "JUMP", "IN_FLIGHT", "LANDING", "LANDED"]
 
-    # References: flight reference at the first tick, landing reference at 600 ms.
-    assert [stamp_from_msg(m.header.stamp) // MS for m in sim.w_refs] == [0, 600]
+    # References: flight reference at the first tick, landing reference at touchdown.
+    assert [stamp_from_msg(m.header.stamp) // MS for m in sim.w_refs] == [0, 850]
     np.testing.assert_allclose(twist_from_msg(sim.w_refs[0])[1], [0.0, 1.0, 0.0])
     np.testing.assert_allclose(twist_from_msg(sim.w_refs[1])[1], [0.0, 0.0, 0.0])
     for pose in sim.q_refs:
@@ -234,7 +236,7 @@ def test_node_answers_every_tick_and_sequences_the_phases(graph) -> None:
 
 def test_phase_and_references_are_latched_for_late_joiners(graph, ros_context) -> None:
     _manager, sim, executor = graph
-    run_ticks(sim, executor, range(0, 110, 10))
+    run_ticks(sim, executor, range(0, 210, 10))  # LAUNCH, then IN_FLIGHT at 200 ms
     late = rclpy.create_node("late_joiner", context=ros_context)
     phases: list[str] = []
     poses: list[PoseStamped] = []

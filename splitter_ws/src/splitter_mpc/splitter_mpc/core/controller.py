@@ -6,9 +6,10 @@ the measured state stamped on that tick; it re-plans on the re-plan grid
 for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
 
 * Active in every gait phase but LANDED (docs/ARCHITECTURE.md, "Gait phases and
-  the MPC"), once an attitude reference has been set. Inactive, or disabled
-  (open loop), it holds the nominal inertia: the configured one, else the first
-  inertia it measured.
+  the MPC"), once an attitude reference has been set. LANDED, it holds its last
+  setpoint (the robot keeps the shape it landed in). Before a reference, or
+  disabled (open loop), it holds the nominal inertia: the configured one, else
+  the first inertia it measured.
 * A failed or late solve (solver error, non-finite problem data or result,
   infeasible result, wall-time deadline ``SolverOptions.max_time_s`` missed: the
   solver worker is killed and restarted, :mod:`.solver_worker`; injected failure) keeps the previous
@@ -232,7 +233,11 @@ class MorphingController:
             if self._plan is not None:
                 self.mpc.reset()
             self._plan = None
-            setpoint = self._nominal.copy()
+            landed = self.config.enabled and phase in INACTIVE_PHASES
+            if landed and self._last_setpoint is not None:
+                setpoint = self._last_setpoint.copy()  # landed: keep the shape it landed in
+            else:
+                setpoint = self._nominal.copy()
         else:
             if self._plan is None or t_ns % self.config.replan_period_ns == 0:
                 status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))

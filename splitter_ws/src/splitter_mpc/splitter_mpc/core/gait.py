@@ -590,6 +590,7 @@ class GaitPhaseMachine:
         self._next_jump = 0
         self._jumps_done = 0
         self._thrust: _Thrust | None = None
+        self._thrust_ended_ns: int | None = None
         self._on_ground = False
         self._stance_since_ns: int | None = None  # start of the current stance streak
         self._last_stance_ns: int | None = None
@@ -674,6 +675,7 @@ class GaitPhaseMachine:
             _LOG.debug("jump %d thrust ends at t = %d ns", self._thrust.index, t_ns)
             self._thrust = None
             self._jumps_done += 1
+            self._thrust_ended_ns = t_ns
         jump_waiting = False
         ground_phase = first or self._phase in _GROUND_PHASES
         if self._thrust is None and self._next_jump < len(cfg.jumps) and ground_phase:
@@ -802,7 +804,11 @@ class GaitPhaseMachine:
                 if jumps_left or not self._descending_after_jumps(velocity):
                     return GaitPhase.IN_FLIGHT, "lift-off"
                 return GaitPhase.LANDING, "lift-off after the last jump, descending"
-            if not jumps_left and self._thrust is None and self._on_ground:
+            stayed = (
+                self._thrust_ended_ns is not None
+                and t_ns - self._thrust_ended_ns > cfg.liftoff_debounce_ns
+            )
+            if not jumps_left and self._thrust is None and self._on_ground and stayed:
                 return GaitPhase.LANDING, "last jump done without leaving the ground"
             return phase, ""
         if phase == GaitPhase.IN_FLIGHT:
