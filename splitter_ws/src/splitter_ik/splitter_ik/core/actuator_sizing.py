@@ -254,6 +254,8 @@ def size_actuators(
                "legs * tau_cont_out / (l1 g) - m", PAPER_VALUES["static_payload_kg"]),
         Figure("dynamic_payload_kg", "dynamic payload (same jump)", dynamic_payload, "kg",
                "legs * tau_peak_out / (l1 (a + g)) - m", PAPER_VALUES["dynamic_payload_kg"]),
+        Figure("limb_force_limit_n", "limbs' dynamic force limit (touchdowns)",
+               limb_dynamic_force_limit_n(), "N", "paper's 20 kg dynamic payload x 9.81 m/s^2"),
     )  # fmt: skip
     assumptions_out: dict[str, dict[str, object]] = {
         "gravity_m_s2": {"value": g, "unit": "m/s^2", "why": "paper: 1/6 G (9.80665 / 6)"},
