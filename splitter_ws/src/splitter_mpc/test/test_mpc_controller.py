@@ -96,10 +96,18 @@ def test_inactive_when_disabled_landed_or_without_reference(mpc) -> None:
     ctl = controller(mpc)
     tick(ctl, 0, "IN_FLIGHT")
     assert ctl.status.active
-    np.testing.assert_allclose(tick(ctl, 10, "LANDED"), I0)
+    before = tick(ctl, 10, "IN_FLIGHT")
+    assert not np.allclose(before, I0)  # the plan morphs
+    # On the ground (LAUNCH, JUMP) the legs stand in the nominal shape: I0 measured first.
+    np.testing.assert_allclose(tick(ctl, 20, "JUMP"), I0)
     assert not ctl.status.active and ctl.plan is None
-    tick(ctl, 20, "JUMP")  # active again (every phase but LANDED): re-plans at once
+    tick(ctl, 30, "IN_FLIGHT")  # active again in flight: re-plans at once
     assert ctl.status.active and ctl.status.replanned
+    flying = tick(ctl, 40, "IN_FLIGHT")
+    # LANDED keeps the shape the robot landed in: the last setpoint, not the nominal.
+    np.testing.assert_allclose(tick(ctl, 50, "LANDED"), flying)
+    np.testing.assert_allclose(tick(ctl, 60, "LANDED"), flying)
+    assert not ctl.status.active and ctl.plan is None
 
     mpc.reset()
     fresh = MorphingController(MODEL, ControllerConfig(), mpc)

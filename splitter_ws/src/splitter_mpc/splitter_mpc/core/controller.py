@@ -5,11 +5,12 @@ the measured state stamped on that tick; it re-plans on the re-plan grid
 (10 Hz, paper Table I) or when it has no plan, and returns the inertia setpoint
 for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
 
-* Active in every gait phase but LANDED (docs/ARCHITECTURE.md, "Gait phases and
-  the MPC"), once an attitude reference has been set. LANDED, it holds its last
-  setpoint (the robot keeps the shape it landed in). Before a reference, or
-  disabled (open loop), it holds the nominal inertia: the configured one, else
-  the first inertia it measured.
+* Active in the airborne phases (IN_FLIGHT, LANDING; docs/ARCHITECTURE.md,
+  "Gait phases and the MPC"), once an attitude reference has been set. LANDED, it
+  holds its last setpoint (the robot keeps the shape it landed in). On the ground
+  before a jump (LAUNCH, JUMP), before a reference, or disabled (open loop), it
+  holds the nominal inertia: the configured one, else the first inertia it
+  measured (the legs stand and push in the nominal shape).
 * A failed or late solve (solver error, non-finite problem data or result,
   infeasible result, wall-time deadline ``SolverOptions.max_time_s`` missed: the
   solver worker is killed and restarted, :mod:`.solver_worker`; injected failure) keeps the previous
@@ -37,7 +38,10 @@ from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSet
 from splitter_mpc.core.ocp import MpcWeights
 
 _LOG = logging.getLogger(__name__)
-INACTIVE_PHASES = (GaitPhase.LANDED.value,)
+# Inactive phases: on the ground (LAUNCH, JUMP) the limbs are legs and stand in the
+# nominal shape (their stroke is what the jump and the touchdown use); LANDED keeps
+# the shape it landed in.
+INACTIVE_PHASES = (GaitPhase.LAUNCH.value, GaitPhase.JUMP.value, GaitPhase.LANDED.value)
 
 
 @dataclass(frozen=True)
@@ -233,7 +237,7 @@ class MorphingController:
             if self._plan is not None:
                 self.mpc.reset()
             self._plan = None
-            landed = self.config.enabled and phase in INACTIVE_PHASES
+            landed = self.config.enabled and phase == GaitPhase.LANDED.value
             if landed and self._last_setpoint is not None:
                 setpoint = self._last_setpoint.copy()  # landed: keep the shape it landed in
             else:
