@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import logging
 import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.core.series import RunSeries
 from splitter_bringup.launcher import launch
-from splitter_bringup.run_bag import read_run_series
+from splitter_bringup.run_bag import read_run_series, read_wall_timing
 
 LOG = logging.getLogger(__name__)
 
@@ -38,6 +40,14 @@ def _progress_printer(label: str, duration_s: float):
     return on_progress
 
 
+@dataclass(frozen=True)
+class WallTiming:
+    """Where a run's wall time went [s]: start-up (processes, solver load, discovery) and flight."""
+
+    startup_s: float  # from the start of the run to the simulator's first step
+    flight_wall_time_s: float  # the simulator's stepping, first step to the last
+
+
 def run_graph(
     scenario_name: str,
     variant: str | None,
@@ -46,10 +56,16 @@ def run_graph(
     real_time: bool = False,
     verbose: bool = False,
     timeout_s: float = 1800.0,
+    timing: list[WallTiming] | None = None,
 ) -> RunSeries:
-    """Launch, record and read back one variant; raises :class:`GraphRunError` on failure."""
+    """Launch, record and read back one variant; raises :class:`GraphRunError` on failure.
+
+    ``timing``, when given, receives the run's :class:`WallTiming` (from the
+    simulator's wall-time figures on /diagnostics).
+    """
     scenario = load_scenario(scenario_name, variant)
     run_dir = out_dir / scenario.variant
+    launched_unix_s = time.time()
     result = launch(
         scenario,
         run_dir,
@@ -66,4 +82,7 @@ def run_graph(
             f"{result.exit_codes}; node logs in {logs}"
         )
     LOG.info("bag recorded in %s", result.bag_dir)
+    if timing is not None:
+        run_start_unix_s, flight_wall_time_s = read_wall_timing(result.bag_dir)
+        timing.append(WallTiming(run_start_unix_s - launched_unix_s, flight_wall_time_s))
     return read_run_series(result.bag_dir, gravity_m_s2=scenario.gravity_m_s2)

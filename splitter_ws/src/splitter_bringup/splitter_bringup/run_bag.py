@@ -108,3 +108,21 @@ def read_run_series(
         except ValueError as exc:
             raise BagSeriesError(f"custom_data {GRAVITY_KEY}: {exc}") from exc
     return series_from_samples(decode_bag(bag_dir), model, gravity_m_s2)
+
+
+def read_wall_timing(bag_dir: Path | str) -> tuple[float, float]:
+    """(wall clock [s, epoch] of the simulator's first step, its stepping wall time [s]).
+
+    From the simulator's last report on /diagnostics (``run_start_unix_s``,
+    ``flight_wall_time_s``); :class:`BagSeriesError` when the bag has none.
+    """
+    latest: dict[str, str] = {}
+    for m in read_messages(bag_dir, topics=[names.DIAGNOSTICS]):
+        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[names.DIAGNOSTICS])
+        for status in cv.diagnostics_from_msg(msg):
+            if status.name.startswith(SIM_DIAGNOSTICS_PREFIX):
+                if "flight_wall_time_s" in status.values:
+                    latest = dict(status.values)
+    if not latest:
+        raise BagSeriesError(f"{bag_dir}: no simulator wall-time report on /diagnostics")
+    return float(latest["run_start_unix_s"]), float(latest["flight_wall_time_s"])

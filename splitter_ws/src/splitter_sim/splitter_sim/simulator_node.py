@@ -369,6 +369,7 @@ class SimulatorNode(Node):
         self._started = False
         self._start_wall = time.monotonic()
         self._run_wall_start: float | None = None
+        self._run_start_unix_s = 0.0  # [s] wall clock (epoch) of the first step
         self._published_t_ns: int | None = None
         self._peak_hemi_g = 0.0  # [G] largest hemi specific force of any published state
         self.lockstep = LockstepWait(LOCKSTEP_TOPICS, self._timeout_s)
@@ -580,6 +581,7 @@ class SimulatorNode(Node):
                 + ": topics without a publisher are not waited for"
             )
         self._run_wall_start = time.monotonic()
+        self._run_start_unix_s = time.time()
         self.get_logger().info(f"t = {self._sim.time_ns * 1e-9:.2f} s: stepping starts")
         return True
 
@@ -787,6 +789,9 @@ class SimulatorNode(Node):
             "unpublished_states": self._publish_failures,
             "finished": final,
         }
+        if self._run_wall_start is not None:  # wall times (not deterministic)
+            values["run_start_unix_s"] = self._run_start_unix_s
+            values["flight_wall_time_s"] = time.monotonic() - self._run_wall_start
         status = DiagnosticStatusSample(f"{NODE_NAME}: physics", level, message, values)
         try:
             self._diagnostics_pub.publish(diagnostics_to_msg(t, [status]))
