@@ -1,4 +1,4 @@
-"""``splitter bench {sim,mpc,bag}``: benchmarks that print figures (JSON with --json)."""
+"""``splitter bench {sim,mpc,bag,graph}``: benchmarks that print figures (JSON with --json)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,10 @@ BENCHMARKS = {
         "MPC solve times against a plain Opti+IPOPT baseline",
     ),
     "bag": ("splitter_msgs_py.bench", "sustained bag write rate without loss"),
+    "graph": (
+        "splitter_bringup.commands.bench_graph",
+        "real-time factor of the lockstep node graph per scenario, against the library",
+    ),
 }
 
 

@@ -1,0 +1,115 @@
+"""``splitter bench graph``: real-time factor of the lockstep node graph, per scenario.
+
+Each scenario's main variant is run twice: through the lockstep graph (every node
+its own process, recorded to a bag, as ``splitter run`` does) and through the
+library loop. Printed for each: the flight's real-time factor (scenario seconds
+over the wall time of the simulator's stepping, ``flight_wall_time_s``) beside
+the goal (5x, issue 18), start-up apart (processes, solver load, discovery), and
+the largest relative difference of the summary metrics between the two backends.
+
+Profile the graph's processes with py-spy, e.g. ``py-spy record -o sim.svg --pid
+PID`` on the simulator while ``splitter launch lunar_jumping`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+GOAL_REAL_TIME_FACTOR = 5.0  # [-] issue 18: lockstep graph flight at >= 5x real time
+DEFAULT_SCENARIOS = ("lunar_jumping", "spin_stabilization")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``splitter bench graph``."""
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--scenario",
+        action="append",
+        default=None,
+        help=f"scenario to run (repeatable; default: {', '.join(DEFAULT_SCENARIOS)})",
+    )
+    parser.add_argument("--variant", default="mpc", help="variant to run (default: mpc)")
+    parser.add_argument("--out", type=Path, default=None, help="keep the runs in this folder")
+
+
+def _metric_values(series, scenario) -> dict[str, float]:
+    from splitter_bringup.commands.run import _metrics
+
+    return {
+        k: float(m.value)
+        for k, m in _metrics(series, scenario).items()
+        if isinstance(m.value, int | float) and math.isfinite(float(m.value))
+    }
+
+
+def largest_relative_difference(a: dict[str, float], b: dict[str, float]) -> tuple[float, str]:
+    """(largest |a - b| / max(|a|, |b|) over the shared metrics, its name); 0 when equal."""
+    worst = (0.0, "")
+    for key in sorted(set(a) & set(b)):
+        diff = abs(a[key] - b[key])
+        if diff > 1e-9:
+            worst = max(worst, (diff / max(abs(a[key]), abs(b[key])), key))
+    return worst
+
+
+def bench_scenario(name: str, variant: str, out: Path) -> dict:
+    """Figures of one scenario variant through the graph and the library."""
+    from splitter_bringup.core.closed_loop import run_closed_loop
+    from splitter_bringup.core.scenario import load_scenario
+    from splitter_bringup.graph_run import WallTiming, run_graph
+
+    scenario = load_scenario(name, variant)
+    timing: list[WallTiming] = []
+    started = time.monotonic()
+    graph = run_graph(name, variant, out / name, timing=timing)
+    graph_wall = time.monotonic() - started
+    started = time.monotonic()
+    library = run_closed_loop(scenario)
+    library_wall = time.monotonic() - started
+    worst, metric = largest_relative_difference(
+        _metric_values(graph, scenario), _metric_values(library, scenario)
+    )
+    flight = timing[0].flight_wall_time_s
+    return {
+        "scenario": name,
+        "variant": variant,
+        "duration_s": scenario.duration_s,
+        "flight_wall_time_s": flight,
+        "startup_s": timing[0].startup_s,
+        "run_wall_time_s": graph_wall,
+        "real_time_factor": scenario.duration_s / flight,
+        "goal_real_time_factor": GOAL_REAL_TIME_FACTOR,
+        "library_wall_time_s": library_wall,
+        "library_real_time_factor": scenario.duration_s / library_wall,
+        "largest_metric_difference": worst,
+        "largest_metric_difference_name": metric,
+    }
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the benchmark; prints figures, 0 when every run finished."""
+    scenarios = tuple(args.scenario or DEFAULT_SCENARIOS)
+    results = []
+    with tempfile.TemporaryDirectory(prefix="splitter-bench-graph-") as tmp:
+        out = args.out or Path(tmp)
+        for name in scenarios:
+            print(f"bench graph: {name} ...", file=sys.stderr, flush=True)
+            results.append(bench_scenario(name, args.variant, out))
+    if args.json:
+        print(json.dumps({"goal_real_time_factor": GOAL_REAL_TIME_FACTOR, "runs": results}))
+        return 0
+    for r in results:
+        print(
+            f"{r['scenario']}/{r['variant']}: graph flight {r['flight_wall_time_s']:.1f} s wall for "
+            f"{r['duration_s']:.0f} s = {r['real_time_factor']:.1f}x real time (goal >= "
+            f"{GOAL_REAL_TIME_FACTOR:g}x), start-up {r['startup_s']:.1f} s; library "
+            f"{r['library_real_time_factor']:.1f}x; largest metric difference "
+            f"{100 * r['largest_metric_difference']:.3g} % ({r['largest_metric_difference_name']})"
+        )
+    return 0
