@@ -106,8 +106,8 @@ def main(args: argparse.Namespace) -> int:
         return 0
     for r in results:
         print(
-            f"{r['scenario']}/{r['variant']}: graph flight {r['flight_wall_time_s']:.1f} s wall for "
-            f"{r['duration_s']:.0f} s = {r['real_time_factor']:.1f}x real time (goal >= "
+            f"{r['scenario']}/{r['variant']}: graph flight {r['flight_wall_time_s']:.1f} s "
+            f"wall for {r['duration_s']:.0f} s = {r['real_time_factor']:.1f}x real time (goal >= "
             f"{GOAL_REAL_TIME_FACTOR:g}x), start-up {r['startup_s']:.1f} s; library "
             f"{r['library_real_time_factor']:.1f}x; largest metric difference "
             f"{100 * r['largest_metric_difference']:.3g} % ({r['largest_metric_difference_name']})"
