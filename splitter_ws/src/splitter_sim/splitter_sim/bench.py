@@ -14,6 +14,30 @@ wall time on one core; the goal is >= 100.
 ``--physics`` adds the conservation figures of the unit tests: world angular
 momentum and energy drift over 20 s of torque-free tumbling, and over 3 s of
 morphing, the energy balance against the integrated actuator work.
+
+The simulator runs its hot path as compiled C when it can
+(:mod:`splitter_sim.core.kernels`; ``"compiled"`` in the JSON says which path was
+timed); ``SPLITTER_SIM_COMPILED=0 splitter bench sim --json`` times the pure-Python
+path. To see where a step's time goes (one morphing run, 10 s simulated)::
+
+    python -m cProfile -s tottime -m splitter_bringup.cli bench sim --repeat 1 | head -40
+
+or, per line of the step (``pip install line_profiler``, not a project dependency)::
+
+    python - <<'PY'
+    from line_profiler import LineProfiler
+    from splitter_sim import bench
+    from splitter_sim.core.simulator import Simulator
+    profile = LineProfiler(Simulator._step_compiled, Simulator.state)
+    profile.runcall(bench.run_lunar, 10.0, True, False)
+    profile.print_stats(output_unit=1e-6)
+    PY
+
+and, independent of the machine's load, the instruction count of one run::
+
+    valgrind --tool=callgrind --callgrind-out-file=/tmp/sim.callgrind \
+        python -c "from splitter_sim import bench; bench.run_lunar(10.0, True, False)"
+    callgrind_annotate /tmp/sim.callgrind | head -30
 """
 
 from __future__ import annotations
@@ -172,7 +196,12 @@ def main(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     if args.duration <= 0.0 or not math.isfinite(args.duration):
         raise SystemExit("--duration must be > 0")
-    results: dict[str, object] = {"duration_s": args.duration, "dt_s": 0.005, "goal_rtf": 100.0}
+    results: dict[str, object] = {
+        "duration_s": args.duration,
+        "dt_s": 0.005,
+        "goal_rtf": 100.0,
+        "compiled": _lunar_simulator(RobotModel()).compiled,
+    }
     for name, morph, snapshot in (
         ("held_joints", False, False),
         ("morphing", True, False),

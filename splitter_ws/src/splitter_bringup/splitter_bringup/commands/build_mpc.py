@@ -1,5 +1,8 @@
 """``splitter build-mpc [SCENARIO ...]``: compile and cache the scenarios' MPC solvers.
 
+It first compiles the simulator's kernels (:mod:`splitter_sim.core.kernels`, one
+library for every model and scenario, ~10 s) into the same cache.
+
 The compiled derivative code of an MPC depends on its horizon, prediction step,
 integrator and whether its state carries the attitude (only when the weights
 track it); objective and weights are parameters. Each formulation the scenarios
@@ -74,9 +77,28 @@ def build(scenario: Scenario, solver: str) -> float:
     return time.monotonic() - started
 
 
+def _build_simulator_kernels() -> None:
+    """Compile (or find in the cache) the simulator's kernels; a warning when impossible."""
+    from splitter_model.codegen import CompilationError
+    from splitter_sim.core import kernels
+
+    started = time.monotonic()
+    try:
+        library = kernels.build_library()
+    except CompilationError as exc:
+        print(f"simulator kernels not built ({exc}): it runs pure Python", file=sys.stderr)
+        return
+    print(
+        f"simulator kernels ready in {time.monotonic() - started:.1f} s ({library.name})",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def main(args: argparse.Namespace) -> int:
     from splitter_bringup.core.closed_loop import controller_config
 
+    _build_simulator_kernels()
     found = formulations(list(args.scenarios) or available_scenarios())
     jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(found)))
     print(

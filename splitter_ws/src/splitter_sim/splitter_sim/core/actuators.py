@@ -41,6 +41,15 @@ def validate_joint_command(
     """
     q = np.array(position, dtype=float).reshape(-1)
     qd = np.zeros(N_JOINTS) if velocity is None else np.array(velocity, dtype=float).reshape(-1)
+    # Fast path (a command arrives every control period): comparisons with NaN are
+    # false and the limits are finite, so this accepts exactly the valid commands.
+    if (
+        q.shape == (N_JOINTS,)
+        and qd.shape == (N_JOINTS,)
+        and ((q >= limits.position_min) & (q <= limits.position_max)).all()
+        and (velocity is None or (np.abs(qd) <= limits.speed_max).all())
+    ):
+        return q, qd
     for label, arr in (("position", q), ("velocity", qd)):
         if arr.shape != (N_JOINTS,):
             raise ValueError(f"joint command {label}: expected {N_JOINTS} values, got {arr.size}")

@@ -153,6 +153,32 @@ def sym_inverse(s: Sequence[float]) -> tuple[float, float, float, float, float, 
     )
 
 
+def limb_constants() -> tuple[tuple[int, int, float, float, float, float, float], ...]:
+    """Per limb: (first joint index, mass index, s, u_y, u_z, w_y, w_z).
+
+    ``s`` is the x component of ``v`` (+1 hemi a, -1 hemi b); the limb frames of
+    :func:`~splitter_model.kinematics.limb_frame` must be axis aligned with ``v``
+    along x (ValueError otherwise).
+    """
+    limbs = []
+    for limb in range(8):
+        u, v, w = limb_frame(limb)
+        if abs(u[0]) > 0.0 or abs(w[0]) > 0.0 or abs(v[1]) + abs(v[2]) > 0.0:
+            raise ValueError("limb frames must be axis aligned with v along x")
+        limbs.append(
+            (
+                3 * limb,  # first joint index
+                limb + 1 + limb // 4,  # mass index
+                float(v[0]),  # s: +1 hemi a, -1 hemi b
+                float(u[1]),  # y of u
+                float(u[2]),  # z of u
+                float(w[1]),  # y of w
+                float(w[2]),  # z of w
+            )
+        )
+    return tuple(limbs)
+
+
 class ShapeKinematics:
     """Precomputed constants of the ten-mass forward kinematics of one model.
 
@@ -169,23 +195,7 @@ class ShapeKinematics:
         self.l2 = model.shank_length_m  # [m]
         self.masses = tuple(float(m) for m in model.lumped_masses_kg)  # [kg]
         self.total_mass = float(sum(self.masses))  # [kg]
-        limbs = []
-        for limb in range(8):
-            u, v, w = limb_frame(limb)
-            if abs(u[0]) > 0.0 or abs(w[0]) > 0.0 or abs(v[1]) + abs(v[2]) > 0.0:
-                raise ValueError("limb frames must be axis aligned with v along x")
-            limbs.append(
-                (
-                    3 * limb,  # first joint index
-                    limb + 1 + limb // 4,  # mass index
-                    float(v[0]),  # s: +1 hemi a, -1 hemi b
-                    float(u[1]),  # y of u
-                    float(u[2]),  # z of u
-                    float(w[1]),  # y of w
-                    float(w[2]),  # z of w
-                )
-            )
-        self.limbs = tuple(limbs)
+        self.limbs = limb_constants()
 
     def evaluate(
         self,

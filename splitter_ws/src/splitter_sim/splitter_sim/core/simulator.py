@@ -23,6 +23,12 @@ Numerics (why the defaults are what they are):
   to exact rest. An undamped drop bounces back to its height within 0.1%, so the
   contact neither creates nor loses energy numerically. Penetration at rest is
   M g / (n k): 18 kg on four feet under Earth gravity 0.88 mm, on the Moon 0.15 mm.
+
+Speed: the servo, the shapes at the RK4 stage times and the RK4 (sub-)steps run
+as compiled C (:mod:`.kernels`: the same formulas in the same order of operations
+as the Python code here, which stays the reference and the fallback without a
+compiler); the decisions between steps (contact candidates, thrust, legs,
+sub-steps) and the outputs (:meth:`Simulator.state`) are Python.
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, actuator_limits
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
-from splitter_sim.core import actuators
+from splitter_sim.core import actuators, kernels
 from splitter_sim.core.legs import LegImpedance, leg_stance_force
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
@@ -247,8 +253,13 @@ class Simulator:
         initial: InitialState,
         *,
         gyroscopic_sign: float = -1.0,
+        compiled: bool = True,
     ) -> None:
-        """Build the simulator; ``gyroscopic_sign = +1`` is a deliberate bug for tests only."""
+        """Build the simulator; ``gyroscopic_sign = +1`` is a deliberate bug for tests only.
+
+        ``compiled``: run the morphing hot path as compiled C (:mod:`.kernels`) when
+        the library is cached or a compiler is available; False: pure Python.
+        """
         if gyroscopic_sign not in (-1.0, 1.0):
             raise ValueError("gyroscopic_sign must be -1 (physics) or +1 (deliberate error)")
         self.model = model
@@ -270,10 +281,12 @@ class Simulator:
         self._cmd_q = self._q.copy()
         self._cmd_qd = np.zeros(N_JOINTS)
         self._cmd_t_ns = 0
+        self._cmd_static = True  # the command has no velocity: the target is the command
         self._settled = True  # joints at rest on a resting target: no servo work
         self._zero_joints = np.zeros(N_JOINTS)
         self._radii_cache: NDArray[np.float64] | None = None
-        self._shape = self._kin.evaluate(self._q.tolist())
+        self._shape: Shape | None = self._kin.evaluate(self._q.tolist())
+        self._shape_block: NDArray[np.float64] | None = None  # compiled shape, until needed
         w = np.asarray(initial.angular_velocity_rad_s, dtype=float)
         momentum = self._shape.inertia_matrix() @ w
         self._s = [
@@ -302,6 +315,28 @@ class Simulator:
         self._far_above_m = config.thrust_stroke_m + 1.0
         self._legs = config.legs
         self.contact_step_count = 0  # steps integrated with contact sub-steps
+        library = kernels.load_library() if compiled else None
+        self._kernels = (
+            None
+            if library is None
+            else kernels.Kernels(
+                library, model, self._kin.masses, self._limits, self._prm, self._dt
+            )
+        )
+        if self._kernels is not None:
+            # The joint state, the accelerations the current shape was made with and
+            # the rigid-body state live in the kernels' workspace (views, no copies).
+            ws = self._kernels.ws
+            self._shape = self._kernels.evaluate(self._q)  # (sets ws q, qd, qdd)
+            self._q, self._qd = ws[kernels.WS_Q], ws[kernels.WS_QD]
+            self._s[10:13] = (self._shape.inertia_matrix() @ w).tolist()
+            ws[kernels.WS_STATE] = self._s
+            ws[kernels.WS_TARGET] = self._cmd_q
+
+    @property
+    def compiled(self) -> bool:
+        """True when the morphing hot path runs as compiled C (:mod:`.kernels`)."""
+        return self._kernels is not None
 
     # --- construction ------------------------------------------------------------
     # --- commands ----------------------------------------------------------------
@@ -325,6 +360,10 @@ class Simulator:
         q, qd = actuators.validate_joint_command(self._limits, position, velocity, JOINT_NAMES)
         self._cmd_q, self._cmd_qd, self._cmd_t_ns = q, qd, self._t_ns
         self._settled = False
+        self._cmd_static = not qd.any()
+        if self._kernels is not None and self._cmd_static:
+            self._kernels.ws[kernels.WS_TARGET] = q
+            self._kernels.ws[kernels.WS_TARGET_V] = 0.0
 
     def command_jump_force(self, force_world_n: ArrayLike, hemi: str = "auto") -> None:
         """Jump thrust [N], world frame, pushed through ``hemi`` ("a", "b" or "auto").
@@ -433,8 +472,18 @@ class Simulator:
         reach = 2.0 * speed * dt + (self.config.gravity_m_s2 + 100.0) * dt * dt
         return tuple(i for i, z in enumerate(heights) if z <= reach)
 
+    def _current_shape(self) -> Shape:
+        """The shape at the current time (made from the compiled kernels' output on first use)."""
+        if self._shape is None:
+            assert self._shape_block is not None
+            self._shape = kernels.shape_from_block(self._shape_block.tolist())
+        return self._shape
+
     def step(self) -> None:
         """Advance by one step ``dt``: actuators, then RK4 (sub-stepped near the ground)."""
+        if self._kernels is not None:
+            self._step_compiled()
+            return
         lim = self._limits
         q, qd = self._q, self._qd
         if self._settled:
@@ -446,7 +495,7 @@ class Simulator:
             qdd = actuators.servo_acceleration(q, qd, target, target_v, lim, self._dt)
             moving = bool(qd.any() or qdd.any())
         s = self._s
-        shape0 = self._shape
+        shape0 = self._current_shape()
         if moving:  # right-limit accelerations of the new step
             shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
         heights = self._mass_heights(s, shape0)
@@ -484,11 +533,93 @@ class Simulator:
         self._shape = shape0
         self._t_ns += self._dt_ns
 
+    def _step_compiled(self) -> None:
+        """:meth:`step` with the compiled kernels: the same decisions, the numerics in C.
+
+        ``sim_begin`` gives the servo acceleration, the shape at the start and what
+        the contact decisions need (mass heights, candidates: ``sim_ground`` for held
+        joints); thrust and legs are decided here as in :meth:`step`; then one
+        ``sim_flight`` / ``sim_step`` call per RK4 sub-step.
+        """
+        kern = self._kernels
+        assert kern is not None
+        ws = kern.ws
+        moving = False
+        begin = kern.out_begin
+        if not self._settled:
+            if not self._cmd_static:
+                age_s = (self._t_ns - self._cmd_t_ns) * 1e-9
+                target, target_v = actuators.command_target(
+                    self._cmd_q, self._cmd_qd, age_s, self._limits
+                )
+                ws[kernels.WS_TARGET] = target
+                ws[kernels.WS_TARGET_V] = target_v
+            kern.begin()
+            moving = begin[kernels.BEGIN_MOVING] != 0.0
+        s = self._s
+        shape0: Shape | None
+        if moving:
+            ws[kernels.WS_QDD] = begin[kernels.BEGIN_QDD]
+            shape0 = None
+            ground = begin[kernels.BEGIN_GROUND :]
+            radius = ground[kernels.GR_RADIUS]
+        else:  # the shape stays that of the last step (its accelerations included)
+            shape0 = self._current_shape()
+            ground = kern.out_ground
+            radius = shape0.radius_max
+        prm = self._prm
+        if s[2] - radius > self._far_above_m:  # no thrust, legs nor contact
+            prm.thrust = prm.contact = ()
+        else:  # the decisions of step(), on the heights and candidates computed in C
+            if not moving:
+                kern.ground()
+            low = (float(ground[kernels.GR_LOW_A]), float(ground[kernels.GR_LOW_B]))
+            thrust = self._thrust_terms(low)
+            if self.config.compliant_legs:
+                if shape0 is None:
+                    shape0 = kernels.shape_from_block(begin[kernels.BEGIN_SHAPE :].tolist())
+                thrust += self._leg_terms(low, thrust, s, shape0)
+            prm.thrust = thrust
+            prm.contact = (
+                kernels.CANDIDATES[int(ground[kernels.GR_CANDIDATES])]
+                if self.config.ground_contact
+                else ()
+            )
+        ws[kernels.WS_JOINT_ADVANCE] = 1.0 if moving else 0.0
+        if not prm.thrust and not prm.contact:
+            ws[kernels.WS_H] = self._dt
+            kern.flight()
+        else:
+            kern.set_forces(prm.thrust, prm.contact)
+            n = self.config.contact_substeps if prm.contact else 1
+            if prm.contact:
+                self.contact_step_count += 1
+            ws[kernels.WS_H] = self._dt / n
+            kern.step()
+            out = kern.out_step
+            for _ in range(n - 1):
+                ws[kernels.WS_STATE] = out[kernels.STEP_STATE]
+                ws[kernels.WS_Q] = out[kernels.STEP_Q]
+                ws[kernels.WS_QD] = out[kernels.STEP_QD]
+                kern.step()
+        out = kern.out_step
+        ws[kernels.WS_STATE] = out[kernels.STEP_STATE]
+        self._s = out[kernels.STEP_STATE].tolist()
+        if moving:
+            end = out[kernels.STEP_FINISH :]
+            ws[kernels.WS_Q] = end[kernels.FIN_Q]
+            ws[kernels.WS_QD] = end[kernels.FIN_QD]
+            self._settled = bool(end[kernels.FIN_SETTLED])
+            self._shape = None
+            self._shape_block = end[kernels.FIN_SHAPE :].copy()
+            self._radii_cache = None
+        self._t_ns += self._dt_ns
+
     # --- outputs -----------------------------------------------------------------
     def state(self) -> SimState:
         """Snapshot of the current state and the derived quantities."""
         s = self._s
-        shape = self._shape.relative()
+        shape = self._current_shape().relative()
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
         thrust = self._thrust_terms(low)
