@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.gait import (
@@ -80,43 +82,67 @@ def test_phase_names_are_the_contract() -> None:
     assert tuple(p.value for p in GaitPhase) == names.GAIT_PHASES
 
 
-def test_scripted_sequence_launch_flight_jump_landing_landed() -> None:
+def test_scripted_sequence_launch_flight_jump_flight_landing_landed() -> None:
+    """Every phase in the paper's order on a script of debounced contact events.
+
+    Touchdown needs 50 ms of stance without a break, lift-off more than 150 ms
+    without stance (the defaults). The flickers at 0.6 s (30 ms of stance in the
+    air) and at 1.4 s (100 ms without stance on the ground) are shorter: nothing
+    changes.
+    """
     config = GaitConfig(jumps=(jump(0.0, "b"), jump(2.0, "auto")), landed_dwell_ns=300 * MS)
     machine = GaitPhaseMachine(config)
     log: list[GaitOutput] = []
     for k in range(450):
         t_ms = 10 * k
-        if t_ms < 100 or 1000 <= t_ms < 2100 or t_ms >= 3000:
-            normal = (STANCE_N, STANCE_N) if t_ms < 100 else (STANCE_N, 0.0)
+        if t_ms < 100 or t_ms >= 3000:
+            normal = (STANCE_N, STANCE_N)
+        elif 600 <= t_ms < 630 or (1000 <= t_ms < 2100 and not 1400 <= t_ms < 1500):
+            normal = (STANCE_N, 0.0)
         else:
             normal = (0.0, 0.0)
-        at_rest = t_ms >= 3200
-        velocity = (0.0, 0.0, 0.0) if at_rest else (1.0, 0.0, 0.2)
+        if t_ms < 2600:
+            velocity = (1.0, 0.0, 0.2)  # going up
+        elif t_ms < 3200:
+            velocity = (1.0, 0.0, -0.2)  # past the apex
+        else:
+            velocity = (0.0, 0.0, 0.0)  # at rest
         log.append(tick(machine, t_ms * MS, normal=normal, velocity=velocity))
-    phases = [out.phase for out in log]
-    assert distinct(phases) == [
-        GaitPhase.LAUNCH,
-        GaitPhase.IN_FLIGHT,
-        GaitPhase.JUMP,
-        GaitPhase.LANDING,
-        GaitPhase.LANDED,
+    changes = [(out.t_ns // MS, out.phase, out.reason) for out in log if out.phase_changed]
+    assert [(t_ms, phase) for t_ms, phase, _ in changes] == [
+        (0, GaitPhase.LAUNCH),  # on the ground with a jump planned
+        (250, GaitPhase.IN_FLIGHT),  # last stance at 90 ms: 160 ms > 150 ms later
+        (1050, GaitPhase.JUMP),  # stance from 1000 ms, 50 ms without a break
+        (2250, GaitPhase.IN_FLIGHT),  # last stance at 2090 ms; still going up
+        (2600, GaitPhase.LANDING),  # the last jump is done and the robot descends
+        (3500, GaitPhase.LANDED),  # on the ground at 3050 ms, at rest from 3200 ms + 300 ms
     ]
-
-    def first(phase: GaitPhase) -> int:
-        return next(out.t_ns for out in log if out.phase == phase) // MS
-
-    # Launch thrust 0-300 ms (held in the air), then flight; touchdown at 1.0 s waits
-    # in JUMP until 2.0 s, thrusts to 2.3 s, then Landing; at rest from 3.2 s + 0.3 s dwell.
-    assert first(GaitPhase.IN_FLIGHT) == 300
-    assert first(GaitPhase.JUMP) == 1000
-    assert first(GaitPhase.LANDING) == 2300
-    assert first(GaitPhase.LANDED) == 3500
-    thrust_ticks = [out.t_ns // MS for out in log if out.thrusting]
-    assert thrust_ticks == list(range(0, 300, 10)) + list(range(2000, 2300, 10))
-    assert {out.pushing_hemi for out in log if out.t_ns < 1 * 10**9 and out.thrusting} == {"b"}
-    assert {out.pushing_hemi for out in log if out.t_ns > 1 * 10**9 and out.thrusting} == {"a"}
-    assert log[-1].jumps_done == 2
-    assert sum(out.phase_changed for out in log) == 5  # the initial phase counts as a change
+    words = ("start", "lift-off", "touchdown", "lift-off", "descending", "at rest")
+    assert all(word in reason for (_, _, reason), word in zip(changes, words, strict=True))
+    assert all(out.reason == "" for out in log if not out.phase_changed)
+    # The debounced contact: on the ground from the start, off at 250 ms, on at 1050 ms
+    # (not at 600 ms), on through the gap at 1.4 s, off at 2250 ms, on again at 3050 ms.
+    assert log[0].on_ground
+    flips = [
+        out.t_ns // MS for prev, out in itertools.pairwise(log) if out.on_ground != prev.on_ground
+    ]
+    assert flips == [250, 1050, 2250, 3050]
+    # Launch: hemi b pushes from 0 ms until the lift-off (before its 300 ms are over).
+    # Second jump ("auto"): only hemi a is in stance at 2.0 s, so it pushes alone, until
+    # the lift-off at 2250 ms (before 2.3 s).
+    thrust_ms = [out.t_ns // MS for out in log if out.thrusting]
+    assert thrust_ms == list(range(0, 250, 10)) + list(range(2000, 2250, 10))
+    assert {out.pushing_hemi for out in log if out.thrusting and out.t_ns < 10**9} == {"b"}
+    assert {out.pushing_hemi for out in log if out.thrusting and out.t_ns > 10**9} == {"a"}
+    assert [out.jumps_done for out in log if out.t_ns // MS in (240, 250, 2240, 2250)] == [
+        0,
+        1,
+        1,
+        2,
+    ]
+    # The attitude reference: on the first tick and when Landing starts.
+    assert [out.t_ns // MS for out in log if out.reference is not None] == [0, 2600]
+    assert log[-1].phase == GaitPhase.LANDED and log[-1].jumps_done == 2
 
 
 def test_flight_only_run_stays_in_flight_with_one_reference() -> None:
@@ -139,25 +165,44 @@ def test_flight_only_run_stays_in_flight_with_one_reference() -> None:
 def test_start_without_contact_is_in_flight_and_a_due_jump_waits_for_stance() -> None:
     machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "a"),)))
     first = tick(machine, 0)
-    assert first.phase == GaitPhase.IN_FLIGHT
+    assert first.phase == GaitPhase.IN_FLIGHT and not first.on_ground
     assert first.jump_waiting and not first.thrusting
-    # Only hemi b touches down: the planned hemi a cannot push yet.
-    out = tick(machine, 100 * MS, normal=(0.0, STANCE_N))
-    assert out.phase == GaitPhase.LAUNCH and out.jump_waiting and not out.thrusting
-    out = tick(machine, 110 * MS, normal=(STANCE_N, STANCE_N))
+    # In the air nothing is due: no thrust, no wait, whatever the contact forces say.
+    for t_ms in range(10, 100, 10):
+        out = tick(machine, t_ms * MS)
+        assert out.phase == GaitPhase.IN_FLIGHT and not out.thrusting and not out.jump_waiting
+    # Only hemi b touches down: after 50 ms of stance the touchdown is JUMP, but the
+    # planned hemi a cannot push yet.
+    for t_ms in range(100, 150, 10):
+        out = tick(machine, t_ms * MS, normal=(0.0, STANCE_N))
+        assert out.phase == GaitPhase.IN_FLIGHT and not out.thrusting and not out.on_ground
+    for t_ms in range(150, 200, 10):
+        out = tick(machine, t_ms * MS, normal=(0.0, STANCE_N))
+        assert out.phase == GaitPhase.JUMP and out.on_ground and not out.thrusting
+        assert out.phase_changed == (t_ms == 150)
+    assert out.jump_waiting
+    out = tick(machine, 200 * MS, normal=(STANCE_N, STANCE_N))
     assert out.thrusting and out.pushing_hemi == "a" and not out.jump_waiting
 
 
-def test_auto_hemi_pushes_through_the_lower_hemi() -> None:
-    # Pitched 10 deg about +y: hemi a (+x) points down, so it is the lower one.
-    q = axis_angle((0.0, 1.0, 0.0), math.radians(10.0))
-    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "auto"),)))
-    out = tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=q)
+def test_auto_jump_is_shared_by_the_hemis_in_stance() -> None:
+    q = axis_angle((0.0, 1.0, 0.0), math.radians(10.0))  # pitched: hemi a is the lower one
+    force = np.array([40.0, 0.0, 40.0])  # [N]
+    config = GaitConfig(jumps=(jump(0.0, "auto", force=force),))
+    # Both in stance: each pushes half; the halves' moments about the COM cancel.
+    out = tick(GaitPhaseMachine(config), 0, normal=(STANCE_N, STANCE_N), orientation=q)
     assert out.hemi_height_m[0] < out.hemi_height_m[1]
-    assert out.pushing_hemi == "a"
-    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "auto"),)))
-    out = tick(machine, 0, normal=(0.0, STANCE_N), orientation=q)
-    assert out.pushing_hemi == "b"  # the only one in stance
+    assert out.pushing_hemi == "auto" and out.thrusting
+    np.testing.assert_allclose(out.jump_force_n, force)
+    np.testing.assert_allclose(out.jump_torque_nm, [0.0, 0.0, 0.0], atol=1e-12)
+    # One in stance (even the higher one): it pushes alone, with its moment.
+    for normal, hemi in (((0.0, STANCE_N), "b"), ((STANCE_N, 0.0), "a")):
+        out = tick(GaitPhaseMachine(config), 0, normal=normal, orientation=q)
+        assert out.pushing_hemi == hemi
+        expected_force, expected_torque = jump_wrench(force, q, RADIUS_X_M, hemi)
+        np.testing.assert_allclose(out.jump_force_n, expected_force)
+        np.testing.assert_allclose(out.jump_torque_nm, expected_torque, atol=1e-12)
+        assert np.linalg.norm(out.jump_torque_nm) > 100.0  # [Nm] 2.8 m x 40 N at least
 
 
 @pytest.mark.parametrize("hemi", ["a", "b"])
@@ -184,15 +229,37 @@ def test_lunar_launch_through_hemi_b_spins_about_plus_y() -> None:
 
 def test_wrench_follows_the_attitude_during_the_thrust() -> None:
     machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "b", duration_s=0.5),)))
-    for k in range(50):
+    for k in range(60):  # hemi b pushes over its stroke while the body pitches
         q = axis_angle((0.0, 1.0, 0.0), 0.01 * k)
-        out = tick(
-            machine, k * TICK_NS, normal=(0.0, STANCE_N) if k == 0 else (0.0, 0.0), orientation=q
+        out = tick(machine, k * TICK_NS, normal=(0.0, STANCE_N), orientation=q)
+        assert out.thrusting == (k < 50)  # the planned 0.5 s
+        if out.thrusting:
+            np.testing.assert_allclose(
+                out.jump_torque_nm,
+                np.cross(rotate(q, [-RADIUS_X_M, 0, 0]), [40, 0, 40]),
+                atol=1e-9,
+            )
+    assert out.jumps_done == 1 and out.phase == GaitPhase.LAUNCH
+
+
+def test_thrust_ends_at_the_lift_off() -> None:
+    """In stance on the first tick only: the thrust lasts until the debounced lift-off."""
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "b", duration_s=0.5),)))
+    log = [
+        tick(
+            machine,
+            k * TICK_NS,
+            normal=(0.0, STANCE_N) if k == 0 else (0.0, 0.0),
+            velocity=(0.5, 0.0, 1.0),  # going up
         )
-        assert out.thrusting
-        np.testing.assert_allclose(
-            out.jump_torque_nm, np.cross(rotate(q, [-RADIUS_X_M, 0, 0]), [40, 0, 40]), atol=1e-9
-        )
+        for k in range(50)
+    ]
+    # Last stance at 0 ms; lift-off once more than 150 ms have passed without it.
+    assert [out.t_ns // MS for out in log if out.thrusting] == list(range(0, 160, 10))
+    lift_off = log[16]
+    assert lift_off.t_ns == 160 * MS and lift_off.phase == GaitPhase.IN_FLIGHT
+    assert lift_off.phase_changed and not lift_off.on_ground and lift_off.jumps_done == 1
+    assert all(out.phase == GaitPhase.IN_FLIGHT and not out.jump_waiting for out in log[16:])
 
 
 @pytest.mark.parametrize(
@@ -216,102 +283,170 @@ def test_thrust_lasts_the_planned_duration_on_the_tick_grid(
 
 
 def test_touchdown_before_the_next_jump_waits_and_a_bounce_is_flight() -> None:
-    config = GaitConfig(jumps=(jump(0.0, "b"), jump(3.0, "auto")), liftoff_debounce_ns=20 * MS)
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(3.0, "auto")))
     machine = GaitPhaseMachine(config)
-    for k in range(31):  # launch thrust in stance then in the air
-        tick(machine, k * TICK_NS, normal=(0.0, STANCE_N) if k < 5 else (0.0, 0.0))
-    assert machine.phase == GaitPhase.IN_FLIGHT
-    assert tick(machine, 1000 * MS, normal=(STANCE_N, 0.0)).phase == GaitPhase.JUMP
-    # Contact flickers for one tick (shorter than the debounce): still on the ground.
-    assert tick(machine, 1010 * MS).phase == GaitPhase.JUMP
-    assert tick(machine, 1020 * MS, normal=(STANCE_N, 0.0)).phase == GaitPhase.JUMP
-    # A real bounce: no stance for longer than the debounce.
-    phases = [tick(machine, (1030 + 10 * k) * MS).phase for k in range(4)]
-    assert phases == [GaitPhase.JUMP, GaitPhase.JUMP, GaitPhase.IN_FLIGHT, GaitPhase.IN_FLIGHT]
-    assert not any(out.thrusting for out in [tick(machine, 1100 * MS, normal=(STANCE_N, 0))])
+    up = (0.0, 0.0, 1.0)  # [m/s]
+
+    def phase_at(t_ms: int, normal=(0.0, 0.0)) -> GaitPhase:
+        return tick(machine, t_ms * MS, normal=normal, velocity=up).phase
+
+    # Launch thrust in stance (0-40 ms), then in the air; lift-off 160 ms after the last
+    # stance.
+    phases = {t: phase_at(t, (0.0, STANCE_N) if t < 50 else (0.0, 0.0)) for t in range(0, 600, 10)}
+    assert phases[190] == GaitPhase.LAUNCH and phases[200] == GaitPhase.IN_FLIGHT
+    # 30 ms of stance in the air (shorter than the 50 ms touchdown debounce): still flying.
+    assert {phase_at(t, (STANCE_N, 0.0)) for t in range(600, 640, 10)} == {GaitPhase.IN_FLIGHT}
+    assert {phase_at(t) for t in range(640, 1000, 10)} == {GaitPhase.IN_FLIGHT}
+    # Touchdown on hemi a: JUMP after 50 ms of stance; it waits there for the next jump.
+    assert [phase_at(t, (STANCE_N, 0.0)) for t in range(1000, 1060, 10)] == [
+        GaitPhase.IN_FLIGHT
+    ] * 5 + [GaitPhase.JUMP]
+    assert {phase_at(t, (STANCE_N, 0.0)) for t in range(1060, 1200, 10)} == {GaitPhase.JUMP}
+    # No stance for 100 ms (shorter than the 150 ms lift-off debounce): still on the ground.
+    assert {phase_at(t) for t in range(1200, 1300, 10)} == {GaitPhase.JUMP}
+    assert {phase_at(t, (STANCE_N, 0.0)) for t in range(1300, 1500, 10)} == {GaitPhase.JUMP}
+    # A real bounce: last stance at 1490 ms, lift-off once more than 150 ms have passed.
+    bounce = [tick(machine, t * MS, velocity=up) for t in range(1500, 1700, 10)]
+    assert [out.t_ns // MS for out in bounce if out.phase_changed] == [1650]
+    assert bounce[15].phase == GaitPhase.IN_FLIGHT and "lift-off" in bounce[15].reason
+    assert all(out.phase == GaitPhase.JUMP for out in bounce[:15])
+    # Back on both hemis before the next jump is due: JUMP again, and the thrust waits
+    # for its time.
+    log = [tick(machine, t * MS, normal=(STANCE_N, STANCE_N)) for t in range(2000, 3100, 10)]
+    assert [out.t_ns // MS for out in log if out.phase_changed] == [2050]
+    assert log[5].phase == GaitPhase.JUMP and "touchdown" in log[5].reason
+    assert [out.t_ns // MS for out in log if out.thrusting] == list(range(3000, 3100, 10))
+    assert {out.pushing_hemi for out in log if out.thrusting} == {"auto"}
+    assert log[-1].jumps_done == 1  # the second thrust is still running
 
 
-def test_landed_needs_the_dwell_and_leaves_when_disturbed() -> None:
+def test_landed_needs_both_hemis_at_rest_for_the_dwell_and_is_final() -> None:
     config = GaitConfig(
         landed_speed_m_s=0.05,
         landed_angular_speed_rad_s=0.05,
         landed_dwell_ns=200 * MS,
-        landed_exit_factor=2.0,
     )
     machine = GaitPhaseMachine(config)
-    assert tick(machine, 0, velocity=(0.0, 0.0, -0.5)).phase == GaitPhase.IN_FLIGHT
-    assert tick(machine, 10 * MS, normal=(STANCE_N, 0), velocity=(0.3, 0, 0)).phase == (
-        GaitPhase.LANDING
-    )
-    phases = [
-        tick(machine, (20 + 10 * k) * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.04, 0)).phase
-        for k in range(22)
+    first = tick(machine, 0, velocity=(0.0, 0.0, -0.5))
+    assert first.phase == GaitPhase.IN_FLIGHT
+    # No jump planned: IN_FLIGHT until the first touchdown (50 ms of stance), then LANDING.
+    out = [
+        tick(machine, t * MS, normal=(STANCE_N, 0), velocity=(0.3, 0, 0)) for t in range(10, 70, 10)
     ]
-    assert phases.count(GaitPhase.LANDING) == 20  # 200 ms dwell from 20 ms
-    assert phases[-2:] == [GaitPhase.LANDED, GaitPhase.LANDED]
-    # Between the thresholds (hysteresis): stays LANDED; beyond exit_factor x: LANDING.
-    assert tick(machine, 300 * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.09, 0)).phase == (
-        GaitPhase.LANDED
-    )
-    assert tick(machine, 310 * MS, normal=(STANCE_N, STANCE_N), rate=(0, 0.11, 0)).phase == (
-        GaitPhase.LANDING
-    )
+    assert [o.phase for o in out] == [GaitPhase.IN_FLIGHT] * 5 + [GaitPhase.LANDING]
+    assert "touchdown" in out[-1].reason
+    # At rest on one hemi only: not LANDED, however long.
+    still = {"rate": (0.0, 0.04, 0.0)}  # below the 0.05 rad/s threshold
+    out = [tick(machine, t * MS, normal=(STANCE_N, 0), **still) for t in range(70, 600, 10)]
+    assert {o.phase for o in out} == {GaitPhase.LANDING}
+    # On both hemis: the dwell starts at 600 ms; a disturbance at 700 ms restarts it.
+    both = (STANCE_N, STANCE_N)
+    out = [tick(machine, t * MS, normal=both, **still) for t in range(600, 700, 10)]
+    out.append(tick(machine, 700 * MS, normal=both, rate=(0.0, 0.06, 0.0)))
+    out += [tick(machine, t * MS, normal=both, **still) for t in range(710, 1000, 10)]
+    assert [o.t_ns // MS for o in out if o.phase_changed] == [910]  # 710 ms + 200 ms
+    assert out[-1].phase == GaitPhase.LANDED and "at rest" in out[31].reason
+    # LANDED is final: disturbed, moving, even off the ground for a second, it stays.
+    after = [
+        tick(machine, t * MS, velocity=(0.5, 0.0, 0.5), rate=(0.0, 2.0, 0.0))
+        for t in range(1000, 2000, 10)
+    ]
+    assert all(o.phase == GaitPhase.LANDED and not o.phase_changed for o in after)
+    assert all(o.reference is None for o in after)
+    assert after[0].on_ground and not after[-1].on_ground  # the lift-off happened
 
 
 def test_vertical_hopper_closed_loop_jumps_twice_and_comes_to_rest() -> None:
-    """Point mass on a spring-damper ground under lunar gravity, driven by the machine.
+    """Point mass on legs and a spring-damper ground under lunar gravity, driven by the machine.
 
-    Launch at 0.5 s, touchdown (with a bounce), wait on the ground for the second
-    jump at 4 s, then land and come to rest: every phase in the paper's order.
+    As in the simulator, the thrust acts while the legs reach the ground (0.4 m of
+    stroke above the unloaded contact) and is reported as ground reaction. Launch
+    at 0.5 s, touch down and wait on the ground for the second jump at 4 s, land
+    after its apex and come to rest: every phase in the paper's order.
     """
     stiffness, damping = 20000.0, 600.0  # [N/m], [N s/m] ground, per hemi
+    stroke = 0.4  # [m] the legs' reach
     dt_ns = 5 * MS  # [ns] sim step; the machine runs every other step
     z0 = 0.45  # [m] centre of mass height when the contact spring is unloaded
-    z, vz = z0 - TOTAL_MASS_KG * MOON_G / (2 * stiffness), 0.0  # resting on the ground
+    z_rest = z0 - TOTAL_MASS_KG * MOON_G / (2 * stiffness)
+    z, vz = z_rest, 0.0  # resting on the ground
     thrust = (0.0, 0.0, 60.0)  # [N]
     config = GaitConfig(
         jumps=(jump(0.5, "auto", 0.6, thrust), jump(4.0, "auto", 0.6, thrust)),
         landed_dwell_ns=500 * MS,
     )
     machine = GaitPhaseMachine(config)
-    force_z = 0.0
-    log: list[GaitOutput] = []
+    force_z = 0.0  # [N] the thrust commanded on the last tick
+    log: list[tuple[GaitOutput, float]] = []  # with the vertical velocity the machine saw
     peak_z = z
+    raw_stance: list[bool] = []
     for step in range(3000):  # 15 s
         t_ns = step * dt_ns
         penetration = max(0.0, z0 - z)
         per_hemi = max(0.0, stiffness * penetration - damping * vz) if penetration > 0 else 0.0
+        legs = force_z / 2.0 if z < z0 + stroke else 0.0  # [N] per hemi, thrust in reach
         if t_ns % TICK_NS == 0:
+            normal = (per_hemi + legs, per_hemi + legs)
             out = machine.update(
-                t_ns, (0, 0, z), (0, 0, vz), IDENTITY, (0, 0, 0), RADIUS_X_M, (per_hemi, per_hemi)
+                t_ns, (0, 0, z), (0, 0, vz), IDENTITY, (0, 0, 0), RADIUS_X_M, normal
             )
             force_z = out.jump_force_n[2]
-            log.append(out)
-        accel = (force_z + 2 * per_hemi) / TOTAL_MASS_KG - MOON_G
+            legs = force_z / 2.0 if z < z0 + stroke else 0.0
+            log.append((out, vz))
+            raw_stance.append(any(out.stance))
+        accel = (2 * (legs + per_hemi)) / TOTAL_MASS_KG - MOON_G
         vz += accel * dt_ns / 1e9
         z += vz * dt_ns / 1e9
         peak_z = max(peak_z, z)
-    # The first touchdown bounces (the contact spring gives back part of the energy):
-    # IN_FLIGHT again until the robot settles in stance and waits for its jump.
-    assert distinct([out.phase for out in log]) == [
+    outputs = [out for out, _ in log]
+    assert [out.phase for out in outputs if out.phase_changed] == [
         GaitPhase.LAUNCH,
         GaitPhase.IN_FLIGHT,
         GaitPhase.JUMP,
         GaitPhase.IN_FLIGHT,
-        GaitPhase.JUMP,
         GaitPhase.LANDING,
         GaitPhase.LANDED,
     ]
-    thrust_ms = [out.t_ns // MS for out in log if out.thrusting]
+    # Both thrusts last their planned 0.6 s: the legs reach the ground throughout.
+    thrust_ms = [out.t_ns // MS for out in outputs if out.thrusting]
     assert thrust_ms == list(range(500, 1100, 10)) + list(range(4000, 4600, 10))
-    touchdown = next(out for out in log if out.phase == GaitPhase.JUMP)
-    assert 1100 < touchdown.t_ns // MS < 4000 and any(touchdown.stance)
-    # 60 N for 0.6 s on 18 kg against 29.4 N weight: the robot clearly flies.
-    assert peak_z > z0 + 0.2
+    assert {out.pushing_hemi for out in outputs if out.thrusting} == {"auto"}
+    # 60 N for 0.6 s on 18 kg against 29.2 N: the robot flies, its legs clear of the ground.
+    assert peak_z > z0 + stroke + 0.15
     assert machine.jumps_done == 2
-    landed = next(out for out in log if out.phase == GaitPhase.LANDED)
-    assert abs(z - (z0 - TOTAL_MASS_KG * MOON_G / (2 * stiffness))) < 1e-3
-    assert landed.t_ns < 15 * 10**9
+    # Contact events on the debounce: each lift-off 160 ms after the last stance (more
+    # than 150 ms), each touchdown after 50 ms of stance without a break.
+    streaks = []  # (first, last) tick index of each run of raw stance
+    for k, stance in enumerate(raw_stance):
+        if stance and (k == 0 or not raw_stance[k - 1]):
+            streaks.append([k, k])
+        elif stance:
+            streaks[-1][1] = k
+    for k, out in enumerate(outputs[1:], start=1):
+        if out.on_ground and not outputs[k - 1].on_ground:  # touchdown
+            first = next(a for a, b in streaks if a <= k <= b)
+            assert k - first == 5
+        elif not out.on_ground and outputs[k - 1].on_ground:  # lift-off
+            last = max(b for _, b in streaks if b < k)
+            assert k - last == 16
+    # The spring ground bounces the robot back up after 40 ms of contact, before the
+    # touchdown debounce is over: neither bounce (after each flight) changes the phase.
+    bounces = [(a, b) for a, b in streaks if b + 1 < len(log) and b - a < 5]
+    assert len(bounces) == 2
+    for a, b in bounces:
+        assert not any(out.phase_changed or out.on_ground for out in outputs[a : b + 2])
+    touchdown = next(out for out in outputs if out.phase == GaitPhase.JUMP)
+    assert 1100 < touchdown.t_ns // MS < 4000 and any(touchdown.stance)
+    # Landing once the centre of mass descends after the last jump: at the apex.
+    k_landing = next(k for k, (out, _) in enumerate(log) if out.phase == GaitPhase.LANDING)
+    assert log[k_landing][1] <= 0.0 < log[k_landing - 1][1]
+    assert not log[k_landing][0].on_ground  # in the air
+    # LANDED after the 500 ms dwell at rest on both hemis; at rest on the ground spring.
+    k_landed = next(k for k, out in enumerate(outputs) if out.phase == GaitPhase.LANDED)
+    assert all(all(out.stance) and out.on_ground for out in outputs[k_landed - 50 : k_landed])
+    assert not outputs[k_landed - 51].on_ground
+    assert abs(z - z_rest) < 1e-3
+    assert all(out.phase == GaitPhase.LANDED for out in outputs[k_landed:])
 
 
 def test_attitude_references_first_tick_and_landing() -> None:
@@ -337,10 +472,39 @@ def test_attitude_references_first_tick_and_landing() -> None:
     outputs = [tick(machine, k * TICK_NS, orientation=q_landing) for k in range(1, 20)]
     landing = [out for out in outputs if out.reference is not None]
     assert len(landing) == 1 and landing[0].phase == GaitPhase.LANDING
-    assert landing[0].t_ns == 100 * MS
+    # The thrust is over at 100 ms; the lift-off (last stance at 0 ms) comes at 160 ms
+    # with the centre of mass not rising: straight to Landing.
+    assert landing[0].t_ns == 160 * MS and "descending" in landing[0].reason
     np.testing.assert_allclose(landing[0].reference.w_ref_rad_s, [0.0, 0.0, 0.0])
     np.testing.assert_allclose(landing[0].reference.q_ref_wxyz, q_landing)
     np.testing.assert_allclose(machine.reference.attitude_at(10**10), q_landing)
+
+
+def test_a_jump_that_never_leaves_the_ground_lands_after_the_lift_off_debounce() -> None:
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "auto", 0.1),)))
+    log = [tick(machine, k * TICK_NS, normal=(STANCE_N, STANCE_N)) for k in range(40)]
+    assert [out.t_ns // MS for out in log if out.thrusting] == list(range(0, 100, 10))
+    # The thrust ends at 100 ms; still on the ground more than 150 ms later: Landing.
+    assert [(out.t_ns // MS, out.phase) for out in log if out.phase_changed] == [
+        (0, GaitPhase.LAUNCH),
+        (260, GaitPhase.LANDING),
+    ]
+    assert "without leaving the ground" in log[26].reason
+    assert log[26].reference is not None and log[26].on_ground
+
+
+def test_lift_off_after_the_last_jump_while_rising_is_flight_then_landing_at_the_apex() -> None:
+    machine = GaitPhaseMachine(GaitConfig(jumps=(jump(0.0, "b", 0.1),)))
+    log = []
+    for k in range(60):
+        normal = (0.0, STANCE_N) if k < 5 else (0.0, 0.0)
+        vz = 1.0 - 0.04 * k  # [m/s] the apex at 250 ms
+        log.append(tick(machine, k * TICK_NS, normal=normal, velocity=(0.0, 0.0, vz)))
+    assert [(out.t_ns // MS, out.phase) for out in log if out.phase_changed] == [
+        (0, GaitPhase.LAUNCH),
+        (200, GaitPhase.IN_FLIGHT),  # last stance at 40 ms; the thrust ended at 100 ms
+        (250, GaitPhase.LANDING),  # v_z = 0: descending
+    ]
 
 
 def test_initial_mode_holds_the_first_attitude() -> None:
@@ -541,37 +705,56 @@ def test_bad_inputs_raise_and_leave_the_machine_unchanged() -> None:
 
 
 def test_same_inputs_give_identical_outputs() -> None:
-    config = GaitConfig(jumps=(jump(0.0, "b"), jump(1.0, "auto")))
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(1.0, "auto")), landed_dwell_ns=200 * MS)
     rng = np.random.default_rng(7)
+
+    def normal_at(t_ms: int) -> np.ndarray:
+        """Noisy contact forces: on the ground 0-0.2 s and 0.8-1.2 s, then from 2 s."""
+        grounded = t_ms < 200 or 800 <= t_ms < 1200 or t_ms >= 2000
+        return rng.uniform(3.0, 30.0, 2) if grounded else rng.uniform(0.0, 2.0, 2)
+
     inputs = [
         (
             k * TICK_NS,
-            rng.normal(size=3),
+            rng.normal(scale=0.01 if k >= 220 else 1.0, size=3),
             axis_angle(rng.normal(size=3), k * 0.01),
-            rng.uniform(0, 30, 2),
+            normal_at(10 * k),
         )
-        for k in range(200)
+        for k in range(300)
     ]
     runs = []
     for _ in range(2):
         machine = GaitPhaseMachine(config)
+        outputs = [tick(machine, t, normal=n, velocity=v, orientation=q) for t, v, q, n in inputs]
         runs.append(
             [
-                (o.phase, o.jump_force_n.tolist(), o.jump_torque_nm.tolist())
-                for o in (
-                    tick(machine, t, normal=n, velocity=v, orientation=q) for t, v, q, n in inputs
+                (
+                    o.phase,
+                    o.reason,
+                    o.on_ground,
+                    o.pushing_hemi,
+                    o.jumps_done,
+                    o.jump_force_n.tolist(),
+                    o.jump_torque_nm.tolist(),
+                    None if o.reference is None else o.reference.q_ref_wxyz.tolist(),
                 )
+                for o in outputs
             ]
         )
     assert runs[0] == runs[1]
-    assert GaitPhase.JUMP in {phase for phase, _, _ in runs[0]}
+    # The run is not trivial: both jumps, through every phase but LANDED (never at rest).
+    phases = {row[0] for row in runs[0]}
+    assert {GaitPhase.LAUNCH, GaitPhase.IN_FLIGHT, GaitPhase.JUMP, GaitPhase.LANDING} <= phases
+    assert runs[0][-1][4] == 2
 
 
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
         ({"stance_force_threshold_n": 0.0}, "stance_force_threshold_n"),
-        ({"landed_exit_factor": 0.5}, "landed_exit_factor"),
+        ({"touchdown_debounce_ns": -1}, "touchdown_debounce_ns"),
+        ({"liftoff_debounce_ns": -1}, "liftoff_debounce_ns"),
+        ({"landed_dwell_ns": -1}, "landed_dwell_ns"),
         ({"w_ref_rad_s": (0.0, math.nan, 0.0)}, "w_ref_rad_s"),
         ({"attitude_reference": "spin"}, "attitude_reference"),
         ({"jumps": (jump(1.0, "b"), jump(1.1, "a"))}, "jump 1"),
@@ -581,6 +764,15 @@ def test_same_inputs_give_identical_outputs() -> None:
 def test_invalid_config_names_the_field(kwargs: dict, field: str) -> None:
     with pytest.raises(ValueError, match=field):
         GaitConfig(**kwargs)
+
+
+def test_the_config_file_gives_the_defaults() -> None:
+    """gait_phase_manager.yaml and GaitConfig agree (touchdown_debounce_s included)."""
+    data = yaml.safe_load(CONFIG_FILE.read_text(encoding="utf-8"))
+    params = data["gait_phase_manager"]["ros__parameters"]
+    assert gait_config_from_parameters(params) == GaitConfig()
+    config = gait_config_from_parameters({**params, "touchdown_debounce_s": 0.02})
+    assert config.touchdown_debounce_ns == 20 * MS
 
 
 @pytest.mark.parametrize(
@@ -604,6 +796,7 @@ def test_invalid_plan_arrays_name_the_parameter(arrays: tuple, parameter: str) -
     ("params", "name"),
     [
         ({"liftoff_debounce_s": -0.1}, "liftoff_debounce_s"),
+        ({"touchdown_debounce_s": math.nan}, "touchdown_debounce_s"),
         ({"landed_dwell_s": math.inf}, "landed_dwell_s"),
         ({"landing_w_ref_rad_s": [0.0, 0.0]}, "landing_w_ref_rad_s"),
         ({"jump_times_s": [0.0], "jump_forces_n": [1.0, 2.0, 3.0]}, "jump_durations_s"),

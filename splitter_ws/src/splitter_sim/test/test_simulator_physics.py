@@ -327,7 +327,13 @@ def test_thrust_through_one_hemi_spins_the_robot() -> None:
         s = sim.state()
         lever = s.mass_positions_world_m[5] - s.position_m  # hemi b body
         assert s.thrust_force_n[1] == pytest.approx(force)
-        assert not s.thrust_force_n[0].any() and not s.in_contact.any()
+        assert not s.thrust_force_n[0].any()
+        # The thrust is the ground's reaction on hemi b's legs: its contact force, applied
+        # at the hemi body (no moment about it); no lumped mass touches the ground.
+        np.testing.assert_array_equal(s.contact_force_n[1], force)
+        assert not s.contact_force_n[0].any() and not s.contact_torque_n_m.any()
+        assert s.in_contact.tolist() == [False, True]
+        assert s.mass_positions_world_m[:, 2].min() > 0.0
         angular_impulse += np.cross(lever, force) * DT
         sim.step()
     s = sim.state()
@@ -336,6 +342,48 @@ def test_thrust_through_one_hemi_spins_the_robot() -> None:
     # Angular momentum equals the angular impulse of the thrust (rectangle rule: 1e-2).
     np.testing.assert_allclose(s.angular_momentum_world, angular_impulse, rtol=2e-2)
     assert s.angular_velocity_rad_s[1] > 0.0  # hemi b at -x pushed up: spin about +y
+
+
+def _lunar_drop(compliant_legs: bool) -> tuple[SimConfig, list]:
+    """Level, the lowest masses 0.45 m above the ground, 3 m/s down; 10 s of states."""
+    config = SimConfig(gravity_m_s2=1.62, compliant_legs=compliant_legs)
+    probe = Simulator(MODEL, config, InitialState(position_m=(0.0, 0.0, 10.0)))
+    lowest = float(probe.state().mass_positions_world_m[:, 2].min()) - 10.0  # [m] from the COM
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=(0.0, 0.0, 0.45 - lowest), velocity_m_s=(0.0, 0.0, -3.0)),
+    )
+    states = []
+    for _ in range(int(10.0 / DT)):
+        sim.step()
+        states.append(sim.state())
+    return config, states
+
+
+def test_lunar_drop_onto_compliant_legs_stays_within_their_force_limit() -> None:
+    """The legs stop 3 m/s within their 0.4 m stroke at their 190 N cap, the masses clear."""
+    config, states = _lunar_drop(compliant_legs=True)
+    weight = MODEL.total_mass_kg * config.gravity_m_s2  # [N]
+    peak = max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in states)
+    assert config.leg_force_max_n - 1.0 <= peak <= config.leg_force_max_n + 2.0  # at the cap
+    for s in states:
+        # Only the legs touch: the lumped masses stay above the ground, every force is the
+        # legs' (normal, up, at the hemi body).
+        assert s.mass_positions_world_m[:, 2].min() > 0.0
+        assert np.all(s.contact_force_n[:, 2] >= 0.0) and not s.contact_torque_n_m.any()
+    assert max(float(s.hemi_acceleration_g.max()) for s in states) < 2.5  # [G] 190 N / 9 kg
+    # At rest: standing crouched on the legs, which carry the weight, evenly.
+    end = states[-1]
+    assert np.linalg.norm(end.velocity_m_s) < 0.01
+    assert np.linalg.norm(end.angular_velocity_rad_s) < 1e-9
+    assert end.in_contact.all()
+    np.testing.assert_allclose(end.contact_force_n[:, 2], [weight / 2, weight / 2], rtol=0.01)
+    assert 0.0 < end.mass_positions_world_m[:, 2].min() < config.thrust_stroke_m
+    # The same drop without the legs: the masses hit the ground, far above the limbs' limit.
+    _, rigid = _lunar_drop(compliant_legs=False)
+    assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in rigid) > 1000.0
+    assert min(float(s.mass_positions_world_m[:, 2].min()) for s in rigid) < 0.0
 
 
 def test_tether_tension_is_the_centripetal_load_of_a_hemi() -> None:

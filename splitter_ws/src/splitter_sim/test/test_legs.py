@@ -1,0 +1,148 @@
+"""Compliant legs: the stance force law of ``splitter_sim.core.legs`` (closed forms, properties)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from splitter_sim.core.legs import LegImpedance, leg_stance_force
+from splitter_sim.core.simulator import SimConfig
+
+# The simulator's defaults (SimConfig): weak spring, strong damper, 190 N cap, mu = 0.8.
+LEGS = LegImpedance(
+    stiffness_n_m=40.0,
+    damping_n_s_m=200.0,
+    tangential_damping_n_s_m=20.0,
+    friction_coefficient=0.8,
+    force_max_n=190.0,
+)
+SPEED = st.floats(-20.0, 20.0)  # [m/s] a velocity component
+VELOCITY = st.tuples(SPEED, SPEED, SPEED)
+COMPRESSION = st.floats(1e-6, 0.4)  # [m] within the 0.4 m stroke
+IMPEDANCES = st.builds(
+    LegImpedance,
+    stiffness_n_m=st.floats(0.0, 1e4),
+    damping_n_s_m=st.floats(0.0, 1e3),
+    tangential_damping_n_s_m=st.floats(0.0, 1e3),
+    friction_coefficient=st.floats(0.0, 2.0),
+    force_max_n=st.floats(1.0, 500.0),
+)
+SETTINGS = settings(max_examples=300, deadline=None)
+
+
+def test_the_simulator_defaults_are_these_legs() -> None:
+    assert SimConfig().legs == LEGS
+
+
+@pytest.mark.parametrize("compression_m", [0.0, -1e-12, -0.05, -3.0])
+@pytest.mark.parametrize("velocity", [(0.0, 0.0, 0.0), (1.0, -2.0, -3.0), (0.0, 0.0, 5.0)])
+def test_no_force_without_compression(compression_m: float, velocity) -> None:
+    assert leg_stance_force(compression_m, velocity, LEGS) == (0.0, 0.0, 0.0)
+
+
+def test_closed_forms_below_the_caps() -> None:
+    # Standing still: the spring alone, k x.
+    assert leg_stance_force(0.3, (0.0, 0.0, 0.0), LEGS) == (0.0, 0.0, pytest.approx(12.0))
+    # Going down at 0.5 m/s: k x + c v_down = 4 + 100 N.
+    assert leg_stance_force(0.1, (0.0, 0.0, -0.5), LEGS) == (0.0, 0.0, pytest.approx(104.0))
+    # Sliding at 0.5 m/s along -y: the hip damping asks for 10 N along +y, the friction
+    # cone of the 12 N normal force allows 0.8 x 12 = 9.6 N.
+    fx, fy, fz = leg_stance_force(0.3, (0.0, -0.5, 0.0), LEGS)
+    assert (fx, fz) == (0.0, pytest.approx(12.0))
+    assert fy == pytest.approx(0.8 * 12.0)
+    # Sliding slowly at 0.1 m/s along +x: 2 N of hip damping, below the cone.
+    fx, fy, fz = leg_stance_force(0.3, (0.1, 0.0, 0.0), LEGS)
+    assert (fx, fy, fz) == (pytest.approx(-2.0), 0.0, pytest.approx(12.0))
+
+
+def test_a_hard_touchdown_saturates_the_normal_force_and_leaves_no_tangential() -> None:
+    """3 m/s down: c v = 600 N, capped at 190 N, all of it normal (it has priority)."""
+    force = leg_stance_force(0.05, (2.0, 1.0, -3.0), LEGS)
+    assert force == (0.0, 0.0, 190.0)  # sqrt(190^2 - 190^2) = 0 left for the tangential
+
+
+def test_the_normal_force_has_priority_near_the_cap() -> None:
+    # Normal 180 N (k x + c v_down = 4 + 176): at most sqrt(190^2 - 180^2) = 60.8 N of the
+    # 0.8 x 180 = 144 N the cone allows are left, and the 200 N of hip damping get that.
+    force = leg_stance_force(0.1, (-10.0, 0.0, -0.88), LEGS)
+    assert force[2] == pytest.approx(180.0)
+    assert force[0] == pytest.approx(math.sqrt(190.0**2 - 180.0**2))
+    assert math.hypot(*force) == pytest.approx(190.0)
+    # The same normal force as without sliding.
+    assert leg_stance_force(0.1, (0.0, 0.0, -0.88), LEGS)[2] == force[2]
+
+
+def test_moving_up_fast_the_legs_let_go() -> None:
+    # k x - c v_up < 0: no pull, and no tangential force either (nothing in the cone).
+    assert leg_stance_force(0.2, (3.0, 0.0, 1.0), LEGS) == (0.0, 0.0, 0.0)
+    # Slower: the spring still wins, 8 - 4 = 4 N.
+    assert leg_stance_force(0.2, (0.0, 0.0, 0.02), LEGS)[2] == pytest.approx(4.0)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("stiffness_n_m", -1.0),
+        ("damping_n_s_m", math.nan),
+        ("tangential_damping_n_s_m", -0.1),
+        ("friction_coefficient", math.inf),
+        ("force_max_n", 0.0),
+        ("force_max_n", math.inf),
+    ],
+)
+def test_invalid_impedance_names_the_field(field: str, value: float) -> None:
+    kwargs = {
+        "stiffness_n_m": 40.0,
+        "damping_n_s_m": 200.0,
+        "tangential_damping_n_s_m": 20.0,
+        "friction_coefficient": 0.8,
+        "force_max_n": 190.0,
+        field: value,
+    }
+    with pytest.raises(ValueError, match=field):
+        LegImpedance(**kwargs)
+
+
+@SETTINGS
+@given(legs=IMPEDANCES, compression_m=st.floats(-1.0, 0.4), velocity=VELOCITY)
+def test_the_legs_never_pull_and_never_exceed_the_cap(
+    legs: LegImpedance, compression_m: float, velocity: tuple[float, float, float]
+) -> None:
+    force = leg_stance_force(compression_m, velocity, legs)
+    assert all(math.isfinite(f) for f in force)
+    assert force[2] >= 0.0
+    assert math.hypot(*force) <= legs.force_max_n * (1.0 + 1e-12)
+    if compression_m <= 0.0 or force[2] == 0.0:
+        assert force == (0.0, 0.0, 0.0)
+
+
+@SETTINGS
+@given(legs=IMPEDANCES, compression_m=COMPRESSION, velocity=VELOCITY)
+def test_tangential_force_is_in_the_cone_and_opposes_the_sliding(
+    legs: LegImpedance, compression_m: float, velocity: tuple[float, float, float]
+) -> None:
+    fx, fy, fz = leg_stance_force(compression_m, velocity, legs)
+    vx, vy, _ = velocity
+    f_t = math.hypot(fx, fy)
+    assert f_t <= legs.friction_coefficient * fz * (1.0 + 1e-12) + 1e-12
+    assert f_t <= legs.tangential_damping_n_s_m * math.hypot(vx, vy) * (1.0 + 1e-12)
+    if f_t > 0.0:
+        # Anti-parallel to the horizontal velocity: f_t . v_t = -|f_t| |v_t|, no cross part.
+        speed = math.hypot(vx, vy)
+        assert fx * vx + fy * vy == pytest.approx(-f_t * speed, rel=1e-9)
+        assert abs(fx * vy - fy * vx) <= 1e-9 * f_t * speed + 1e-300
+
+
+@SETTINGS
+@given(legs=IMPEDANCES, compression_m=COMPRESSION, velocity=VELOCITY)
+def test_the_normal_force_is_the_capped_impedance_whatever_the_sliding(
+    legs: LegImpedance, compression_m: float, velocity: tuple[float, float, float]
+) -> None:
+    _, _, fz = leg_stance_force(compression_m, velocity, legs)
+    impedance = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * velocity[2]
+    assert fz == pytest.approx(min(max(impedance, 0.0), legs.force_max_n), rel=1e-12, abs=1e-12)
+    # Priority: sliding never takes anything from the normal force.
+    assert leg_stance_force(compression_m, (0.0, 0.0, velocity[2]), legs)[2] == fz
