@@ -34,6 +34,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
         "splitter_bringup.commands.replay",
         "re-run the MPC on a recorded bag's inputs and compare its setpoints",
     ),
+    "campaign": (
+        "splitter_bringup.commands.campaign",
+        "Monte-Carlo campaign of random tumbles on Dask: success rate and failure modes",
+    ),
     "build-mpc": (
         "splitter_bringup.commands.build_mpc",
         "compile and cache the MPC solvers the scenarios fly",

@@ -30,9 +30,10 @@ differences to ~0.01 rad/s within 8 s (as does solving to 1e-8 instead of 1e-10)
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -57,6 +58,67 @@ CONTROL_PERIOD_NS = 10_000_000  # [ns] the control tick (docs/ARCHITECTURE.md)
 TETHER_JOINT = 24
 
 ProgressCallback = Callable[[float], None]  # called with the fraction done, in [0, 1]
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """How the plant and its sensors differ from what the controller assumes (robustness runs).
+
+    * ``plant_model``: the robot the simulator flies (e.g. other masses); the MPC and
+      the allocator keep the nominal ``model`` of :func:`run_closed_loop`.
+    * ``gyro_noise_rad_s``, ``gyro_bias_rad_s``: the rate gyro of ``/splitter/imu``, what
+      the MPC and the allocator read, reports the true body rate plus this constant
+      bias plus white Gaussian noise of this standard deviation per axis and reading
+      (one reading per control tick, drawn from ``seed``). The gait phase manager
+      reads odometry and the orientation stays exact.
+    * ``actuator_lag_s``: every joint and tether command reaches the simulator's servos
+      through a first-order lag of this time constant (position and velocity alike,
+      on top of the servos' rate and acceleration limits): the shape follows late.
+    """
+
+    plant_model: RobotModel | None = None
+    gyro_noise_rad_s: float = 0.0  # [rad/s] standard deviation per axis and reading
+    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
+    actuator_lag_s: float = 0.0  # [s] time constant, 0: none
+    seed: int = 0  # of the gyro noise
+
+    def __post_init__(self) -> None:
+        for name in ("gyro_noise_rad_s", "actuator_lag_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"Perturbation.{name} must be finite and >= 0, got {value!r}")
+        bias = np.asarray(self.gyro_bias_rad_s, dtype=float)
+        if bias.shape != (3,) or not np.all(np.isfinite(bias)):
+            raise ValueError(f"Perturbation.gyro_bias_rad_s: 3 finite numbers, got {bias}")
+
+
+class _Perturbed:
+    """The gyro reading and the lagged joint commands of a :class:`Perturbation`."""
+
+    def __init__(self, perturbation: Perturbation, control_period_s: float) -> None:
+        self._p = perturbation
+        self._bias = np.asarray(perturbation.gyro_bias_rad_s, dtype=float)
+        self._rng = np.random.default_rng(perturbation.seed)
+        tau = perturbation.actuator_lag_s
+        # exact discretisation of dx/dt = (u - x) / tau with u held over a tick
+        self._alpha = 1.0 if tau == 0.0 else -math.expm1(-control_period_s / tau)
+        self._command: tuple[np.ndarray, np.ndarray] | None = None
+
+    def gyro(self, w_rad_s: np.ndarray) -> np.ndarray:
+        """The rate gyro's reading of the true body rate ``w_rad_s`` [rad/s]."""
+        w = np.asarray(w_rad_s, dtype=float) + self._bias
+        if self._p.gyro_noise_rad_s > 0.0:
+            w = w + self._rng.normal(0.0, self._p.gyro_noise_rad_s, 3)
+        return w
+
+    def command(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint command (position, velocity) the servos receive, lagged."""
+        if self._command is None or self._alpha == 1.0:
+            self._command = (np.array(q, dtype=float), np.array(qd, dtype=float))
+        else:
+            lq, lqd = self._command
+            self._command = (lq + self._alpha * (q - lq), lqd + self._alpha * (qd - lqd))
+        return self._command
 
 
 def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
@@ -119,13 +181,16 @@ def run_closed_loop(
     mpc: MpcSettings | None = None,
     fail_solves_at_s: tuple[float, ...] = (),
     duration_s: float | None = None,
+    perturbation: Perturbation | None = None,
 ) -> RunSeries:
     """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
 
     ``controller`` replaces the scenario's MPC (for benchmarks); ``mpc`` sets the
     solver options of the default one. ``fail_solves_at_s`` injects a solver
     failure at the re-plans at those times (tests of the failure handling).
-    ``duration_s`` shortens the run.
+    ``duration_s`` shortens the run. ``perturbation`` makes the plant, its gyro and
+    its actuators differ from what the controller assumes (:class:`Perturbation`);
+    the series records the true state.
     """
     model = model or RobotModel()
     if controller is None:
@@ -137,8 +202,13 @@ def run_closed_loop(
                 controller=own,
                 fail_solves_at_s=fail_solves_at_s,
                 duration_s=duration_s,
+                perturbation=perturbation,
             )
-    sim = simulator_for(scenario, model)
+    plant = None if perturbation is None else perturbation.plant_model
+    sim = simulator_for(scenario, plant or model)
+    perturbed = (
+        None if perturbation is None else _Perturbed(perturbation, CONTROL_PERIOD_NS / NS_PER_S)
+    )
     gait = GaitPhaseMachine(gait_config_from_parameters(gait_parameters(scenario)))
     # The allocator node starts from the radii of the first measured inertia (projected,
     # its default ``initialize_from_measured_inertia``): the same start here.
@@ -185,9 +255,14 @@ def run_closed_loop(
             )
             if t in fail_ns:
                 controller.inject_solver_failures(1)
+            gyro = (  # the rate of the imu message
+                state.angular_velocity_rad_s
+                if perturbed is None
+                else perturbed.gyro(state.angular_velocity_rad_s)
+            )
             setpoint = controller.on_state(
                 t,
-                state.angular_velocity_rad_s,
+                gyro,
                 received_quaternion(state.orientation_wxyz, hops=1),  # imu message
                 state.principal_inertia_kg_m2,
                 phase_name,
@@ -201,8 +276,13 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            allocation = allocator.allocate(t, setpoint, state.angular_velocity_rad_s)
-            sim.command_joints(allocation.joint_position, allocation.joint_velocity)
+            allocation = allocator.allocate(t, setpoint, gyro)
+            if perturbed is None:
+                sim.command_joints(allocation.joint_position, allocation.joint_velocity)
+            else:
+                sim.command_joints(
+                    *perturbed.command(allocation.joint_position, allocation.joint_velocity)
+                )
         _record(rec, state, setpoint, solve, counts)
         phases.append(phase_name)
         if step < n_steps:
