@@ -69,6 +69,11 @@ def _non_negative(name: str, value: float) -> None:
         raise ValueError(f"SimConfig.{name} must be finite and >= 0, got {value!r}")
 
 
+def _boolean(name: str, value: object) -> None:
+    if not isinstance(value, bool):
+        raise ValueError(f"SimConfig.{name} must be a bool, got {value!r}")
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """Integrator, gravity and contact settings; validated on construction.
@@ -106,10 +111,7 @@ class SimConfig:
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
         _non_negative("gravity_m_s2", self.gravity_m_s2)
-        if not isinstance(self.ground_contact, bool):
-            raise ValueError(
-                f"SimConfig.ground_contact must be a bool, got {self.ground_contact!r}"
-            )
+        _boolean("ground_contact", self.ground_contact)
         _positive("contact_stiffness_n_m", self.contact_stiffness_n_m)
         _non_negative("contact_damping_n_s_m", self.contact_damping_n_s_m)
         _non_negative("friction_coefficient", self.friction_coefficient)
@@ -120,10 +122,7 @@ class SimConfig:
                 f"got {self.contact_substeps!r}"
             )
         _non_negative("thrust_stroke_m", self.thrust_stroke_m)
-        if not isinstance(self.compliant_legs, bool):
-            raise ValueError(
-                f"SimConfig.compliant_legs must be a bool, got {self.compliant_legs!r}"
-            )
+        _boolean("compliant_legs", self.compliant_legs)
         _non_negative("leg_stiffness_n_m", self.leg_stiffness_n_m)
         _non_negative("leg_damping_n_s_m", self.leg_damping_n_s_m)
         _non_negative("leg_tangential_damping_n_s_m", self.leg_tangential_damping_n_s_m)
