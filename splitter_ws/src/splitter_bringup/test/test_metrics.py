@@ -71,6 +71,21 @@ def test_steady_spin_about_y_matches_the_closed_forms() -> None:
     np.testing.assert_allclose(err[:400], 0.28 * t[:400], atol=1e-9)
 
 
+def test_round_off_rates_are_no_spin_on_either_backend() -> None:
+    """A jump without spin: exact zeros (library) and 1e-7 rad/s noise (graph) agree."""
+    t = np.linspace(0.0, 4.0, 801)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+    still = flight_summary(series(t, np.zeros((len(t), 3)), q), w_ref_rad_s=(0.0, 0.0, 0.0))
+    noise = 1e-7 * np.column_stack([np.sin(3 * t), np.cos(2 * t) * t, np.sin(t)])
+    noisy = flight_summary(series(t, noise, q), w_ref_rad_s=(0.0, 0.0, 0.0))
+    for name in ("time_constant_s", "settling_time_s", "spin_alignment_final"):
+        assert still[name].value == noisy[name].value == 0.0, name
+    # a real spin-up still has its step and its axis
+    spin = np.column_stack([np.zeros_like(t), 1.0 - np.exp(-t), np.zeros_like(t)])
+    spun = flight_summary(series(t, spin, q), w_ref_rad_s=(0.0, 0.0, 0.0))
+    assert spun["time_constant_s"].value > 0.5 and spun["spin_alignment_final"].value == 1.0
+
+
 def test_attitude_error_counts_q_and_minus_q_as_one_attitude() -> None:
     t = np.linspace(0.0, 2.0, 201)
     q = np.array([propagate_attitude([1, 0, 0, 0], [0, 1.0, 0], s) for s in t])

@@ -6,7 +6,7 @@ or a bag of the node graph). Definitions (stated, since the paper does not):
 * final window: the last ``FINAL_WINDOW_S`` = 0.5 s of the run. ``residual_wx``,
   ``residual_wz`` are the mean |w_x|, |w_z| over it; ``wy_final`` the mean w_y.
 * ``time_constant_s``: first time w_y has covered 63.2 % of its change from t = 0
-  to ``wy_final``.
+  to ``wy_final`` (0 for a change under ``NO_SPIN_RAD_S``: round-off is no step).
 * ``settling_time_s``: last time |w_y - wy_final| exceeds ``SETTLING_BAND`` = 2 % of
   that change; after it w_y stays in the band.
 * ``max_g``: largest specific force on a Hemi-SPLITTER body [G] (the simulator's
@@ -52,6 +52,10 @@ from splitter_mpc.core.gait import attitude_reference_at_stamp, propagate_attitu
 FINAL_WINDOW_S = 0.5  # [s]
 SETTLING_BAND = 0.02  # [-] of the w_y change
 TIME_CONSTANT_FRACTION = 1.0 - math.exp(-1.0)  # 63.2 %
+# [rad/s] below it a rate is round-off, not a spin (a symmetric jump's 1e-7 rad/s): a
+# w_y change that small is no step (time constant and settling 0) and a final |w| that
+# small has no axis (alignment 0), whichever backend computed the flight
+NO_SPIN_RAD_S = 1e-3
 
 
 @dataclass(frozen=True)
@@ -102,7 +106,7 @@ def step_response(t_s: ArrayLike, y: ArrayLike, final: float) -> tuple[float, fl
     t = np.asarray(t_s, dtype=float)
     y = np.asarray(y, dtype=float)
     change = final - y[0]
-    if abs(change) < 1e-12:
+    if abs(change) < NO_SPIN_RAD_S:
         return 0.0, 0.0
     progress = (y - y[0]) / change
     reached = np.nonzero(progress >= TIME_CONSTANT_FRACTION)[0]
@@ -115,6 +119,12 @@ def step_response(t_s: ArrayLike, y: ArrayLike, final: float) -> tuple[float, fl
     else:
         settling = float(t[outside[-1] + 1])
     return tau, settling
+
+
+def _spin_alignment(w_rad_s: NDArray[np.float64]) -> float:
+    """``|w_y| / |w|``; 0 when ``|w|`` is below ``NO_SPIN_RAD_S`` (no axis to align)."""
+    norm = float(np.linalg.norm(w_rad_s))
+    return 0.0 if norm < NO_SPIN_RAD_S else float(abs(w_rad_s[1]) / norm)
 
 
 def attitude_reference_series(
@@ -201,7 +211,7 @@ def flight_summary(
         "momentum_start": Metric(float(momentum[0]), "kg m^2/s", "|H| at t = 0"),
         "momentum_end": Metric(float(momentum[-1]), "kg m^2/s", "|H| at the end"),
         "spin_alignment_final": Metric(
-            float(abs(w_end[1]) / max(np.linalg.norm(w_end), 1e-12)), "-", "|w_y| / |w| at the end"
+            _spin_alignment(w_end), "-", "|w_y| / |w| at the end (0 without a spin)"
         ),
         "attitude_error_final_deg": Metric(
             float(np.degrees(np.mean(att[final]))),
