@@ -485,21 +485,6 @@ def _sym_contact_force(ca: Any, z: Any, velocity: Sequence, ws: Any) -> tuple:
     )
 
 
-def _sym_point_force(
-    rotation: Sequence, force: Sequence, point: Sequence, velocity: Sequence
-) -> tuple[tuple[Any, Any, Any], Any]:
-    """Torque about the centre of mass (body frame) and relative-momentum power of a world
-    ``force`` applied at the body ``point`` moving at the body ``velocity`` (shape motion)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation
-    gx, gy, gz = force
-    x, y, z = point
-    bx = r00 * gx + r10 * gy + r20 * gz
-    by = r01 * gx + r11 * gy + r21 * gz
-    bz = r02 * gx + r12 * gy + r22 * gz
-    torque = (y * bz - z * by, z * bx - x * bz, x * by - y * bx)
-    return torque, bx * velocity[0] + by * velocity[1] + bz * velocity[2]
-
-
 def _sym_state_derivative(
     ca: Any, s: Sequence, block: Sequence, ws: Any, external: bool = True
 ) -> list:
@@ -520,8 +505,7 @@ def _sym_state_derivative(
     fx = fy = fz = 0.0
     tx = ty = tz = 0.0
     p_rel = 0.0
-    rotation = _sym_rotation(qw, qx, qy, qz)
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _sym_rotation(qw, qx, qy, qz)
     k = SH_MASSES
     rx, ry, rz = block[k : k + 10], block[k + 10 : k + 20], block[k + 20 : k + 30]
     dvx, dvy, dvz = block[k + 30 : k + 40], block[k + 40 : k + 50], block[k + 50 : k + 60]
@@ -535,15 +519,17 @@ def _sym_state_derivative(
                 picked = ca.if_else(index == i, values[i], picked)
             return picked
 
-        (dtx, dty, dtz), dp = _sym_point_force(
-            rotation,
-            (gx, gy, gz),
-            (pick(rx), pick(ry), pick(rz)),
-            (pick(dvx), pick(dvy), pick(dvz)),
-        )
-        fx, fy, fz = fx + gx, fy + gy, fz + gz
-        tx, ty, tz = tx + dtx, ty + dty, tz + dtz
-        p_rel += dp
+        x, y, z = pick(rx), pick(ry), pick(rz)
+        bx = r00 * gx + r10 * gy + r20 * gz
+        by = r01 * gx + r11 * gy + r21 * gz
+        bz = r02 * gx + r12 * gy + r22 * gz
+        fx += gx
+        fy += gy
+        fz += gz
+        tx += y * bz - z * by
+        ty += z * bx - x * bz
+        tz += x * by - y * bx
+        p_rel += bx * pick(dvx) + by * pick(dvy) + bz * pick(dvz)
     for i in range(N_MASSES if external else 0):
         x, y, z = rx[i], ry[i], rz[i]
         height = pz + r20 * x + r21 * y + r22 * z
@@ -556,12 +542,16 @@ def _sym_state_derivative(
         gx, gy, gz = _sym_contact_force(ca, height, (mvx, mvy, mvz), ws)
         candidate = ws[WS_CANDIDATES.start + i] != 0.0
         gx, gy, gz = (ca.if_else(candidate, g, 0.0) for g in (gx, gy, gz))
-        (dtx, dty, dtz), dp = _sym_point_force(
-            rotation, (gx, gy, gz), (x, y, z), (dvx[i], dvy[i], dvz[i])
-        )
-        fx, fy, fz = fx + gx, fy + gy, fz + gz
-        tx, ty, tz = tx + dtx, ty + dty, tz + dtz
-        p_rel += dp
+        bx = r00 * gx + r10 * gy + r20 * gz
+        by = r01 * gx + r11 * gy + r21 * gz
+        bz = r02 * gx + r12 * gy + r22 * gz
+        fx += gx
+        fy += gy
+        fz += gz
+        tx += y * bz - z * by
+        ty += z * bx - x * bz
+        tz += x * by - y * bx
+        p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
     m_inv = 1.0 / ws[WS_MODEL.start + 2 + N_MASSES]
     b = ws[WS_DAMPING]
     ax = (fx - b * vx) * m_inv
