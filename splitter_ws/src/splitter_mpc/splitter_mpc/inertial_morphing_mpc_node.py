@@ -7,8 +7,10 @@ tick ``t`` it re-plans (on the 100 ms grid, or without a plan) and publishes the
 setpoint for ``t`` on ``/splitter/inertia_setpoint`` stamped ``t``. The first tick
 waits for the attitude reference (``/splitter/attitude_reference`` and
 ``/splitter/attitude_reference_pose``, latched, published by the gait phase
-manager on its first tick), so that the first plan does not depend on message
-order. ``/splitter/gait_phase`` (latched) switches it off in LANDED.
+manager on its first tick), and for the gait phase when a node publishes one, so
+that the first plan does not depend on message order (a first tick answered before
+the phase arrived would plan where LAUNCH holds the nominal shape).
+``/splitter/gait_phase`` (latched) switches it off in LANDED.
 ``/diagnostics`` every 100 ms of simulated time: solve time, iterations,
 status, cost. Bad messages are rejected with a throttled warning; the node keeps
 its last good data.
@@ -323,6 +325,9 @@ class InertialMorphingMpcNode(Node):
             self._reject(names.GAIT_PHASE, ValueError(f"unknown phase {msg.data!r}"))
             return
         self._phase = msg.data
+        if self._waiting_tick is not None:
+            tick, self._waiting_tick = self._waiting_tick, None
+            self._try_tick(tick)
 
     def _update_reference(self) -> None:
         if self._w_ref is None or self._q_ref is None:
@@ -345,8 +350,11 @@ class InertialMorphingMpcNode(Node):
             return
         if t_ns not in self._imu or t_ns not in self._inertia:
             return
-        if self.controller.config.enabled and self.controller.reference is None:
-            self._waiting_tick = t_ns  # answered when the first reference arrives
+        if self.controller.config.enabled and (
+            self.controller.reference is None
+            or (self._phase is None and self.count_publishers(names.GAIT_PHASE) > 0)
+        ):
+            self._waiting_tick = t_ns  # answered when the first reference and phase arrive
             return
         imu = self._imu[t_ns]
         inertia = self._inertia[t_ns]

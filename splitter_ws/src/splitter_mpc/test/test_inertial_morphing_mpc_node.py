@@ -142,6 +142,7 @@ def test_waits_for_the_reference_then_answers_every_tick(graph) -> None:
 def test_bad_messages_are_rejected_and_the_node_keeps_answering(graph) -> None:
     mpc, fake, executor = graph
     fake.publish_reference(0)
+    fake.phase.publish(String(data="IN_FLIGHT"))
     tick(fake, executor, 0)
     bad_imu = imu_to_msg(10 * MS, Q0, W0, (0.0, 0.0, 0.0))
     bad_imu.angular_velocity.x = math.nan  # rejected imu
@@ -158,6 +159,20 @@ def test_bad_messages_are_rejected_and_the_node_keeps_answering(graph) -> None:
     assert fake.stamps() == [0, 10, 20]
     assert sum(rejection_counts(mpc).values()) == 4
     assert np.all(np.isfinite([vector3_from_msg(m).vector for m in fake.setpoints]))
+
+
+def test_the_first_tick_waits_for_the_gait_phase(graph) -> None:
+    """Reference before phase (message order): LAUNCH still holds the nominal shape."""
+    mpc, fake, executor = graph
+    fake.publish_reference(0)
+    fake.imu.publish(imu_to_msg(0, Q0, W0, (0.0, 0.0, 0.0)))
+    fake.inertia.publish(vector3_to_msg(0, 1.01 * I0))
+    spin_for(executor, 0.3)
+    assert fake.stamps() == []  # a phase publisher exists: no answer without its phase
+    fake.phase.publish(String(data="LAUNCH"))
+    spin_for(executor, 0.3)
+    assert fake.stamps() == [0] and mpc.controller.status.phase == "LAUNCH"
+    np.testing.assert_allclose(vector3_from_msg(fake.setpoints[0]).vector, 1.01 * I0)
 
 
 def test_landed_holds_the_nominal_inertia(graph) -> None:
