@@ -193,10 +193,21 @@ class NlpBackend:
                 self._solver = ca.nlpsol(f"morphing_{plugin}_c", plugin, str(library), opts)
             except (CompilationError, RuntimeError) as exc:
                 _LOG.warning("%s: compiled code unavailable (%s); using the SX VM", plugin, exc)
-        self._evaluate = _Evaluator(_fg_function(ocp).expand())
-        self._gradient = ca.Function(
-            "morphing_grad_f", [ocp.z, ocp.p], [ca.gradient(ocp.objective, ocp.z)]
-        ).expand()
+        # the checks around each solve (scale at the warm start, cost and violation of
+        # the answer) cost ~0.5 ms in the SX virtual machine, ~0.05 ms compiled
+        checks = [
+            _fg_function(ocp).expand(),
+            ca.Function(
+                "morphing_grad_f", [ocp.z, ocp.p], [ca.gradient(ocp.objective, ocp.z)]
+            ).expand(),
+        ]
+        if options.compile:
+            try:
+                checks = compiled_functions("morphing_nlp_checks", checks, options.cache_dir)
+            except (CompilationError, RuntimeError) as exc:
+                _LOG.warning("%s: compiled checks unavailable (%s); using the SX VM", plugin, exc)
+        self._evaluate = _Evaluator(checks[0])
+        self._gradient = checks[1]
 
     def objective_scale(self, data: ProblemInstance) -> float:
         """IPOPT's gradient-based objective scale at the warm start (module docstring)."""
