@@ -386,6 +386,35 @@ def test_lunar_drop_onto_compliant_legs_stays_within_their_force_limit() -> None
     assert min(float(s.mass_positions_world_m[:, 2].min()) for s in rigid) < 0.0
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_joints_at_rest_after_a_move_report_the_rigid_spin(compiled: bool) -> None:
+    """Once the limbs stop, tension, hemi acceleration and power are those of a rigid spin.
+
+    A move ends on a braking step; the steps after it must not keep its accelerations
+    (they once did: a tension 8.6 N below the centripetal load, for as long as the
+    joints rested, in a random-tumble campaign).
+    """
+    sim = _flight(w0=(0.0, 1.28, 0.0), compiled=compiled)
+    assert sim.compiled == compiled
+    sim.command_joints(joint_positions_from_radii(MODEL, (2.8, 0.35, 0.3)))
+    moved = rest_checks = 0
+    was_moving = False
+    for _ in range(int(2.0 / DT)):
+        sim.step()
+        s = sim.state()
+        stopping, was_moving = was_moving, bool(s.joint_velocity.any())
+        if was_moving or stopping:  # moving, or the braking step just ended (its left limit)
+            moved += 1
+            continue
+        w, r_x = s.angular_velocity_rad_s, s.radii_m[0]
+        centripetal = r_x * (w[1] ** 2 + w[2] ** 2)  # [m/s^2] of each hemi body
+        assert s.tether_tension_n == pytest.approx(MODEL.hemi_mass_kg * centripetal, rel=1e-9)
+        assert s.actuator_power_w == pytest.approx(0.0, abs=1e-9)
+        rest_checks += 1
+    assert moved > 10
+    assert rest_checks > 100
+
+
 def test_tether_tension_is_the_centripetal_load_of_a_hemi() -> None:
     sim = _flight(w0=(0.0, 1.28, 0.0))
     s = sim.state()

@@ -497,6 +497,9 @@ class Simulator:
         shape0 = self._current_shape()
         if moving:  # right-limit accelerations of the new step
             shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
+        elif shape0.moving:  # the joints stopped: drop the last step's rates and accelerations
+            shape0 = self._kin.evaluate(q.tolist())
+            self._shape = shape0
         heights = self._mass_heights(s, shape0)
         prm = self._prm
         low = self._lowest_per_hemi(heights)
@@ -562,8 +565,11 @@ class Simulator:
             shape0 = None
             ground = begin[kernels.BEGIN_GROUND :]
             radius = ground[kernels.GR_RADIUS]
-        else:  # the shape stays that of the last step (its accelerations included)
+        else:  # the shape stays that of the last step, at rest
             shape0 = self._current_shape()
+            if shape0.moving:  # the joints stopped: drop the last step's rates and accelerations
+                shape0 = kern.evaluate(self._q)
+                self._shape = shape0
             ground = kern.out_ground
             radius = shape0.radius_max
         prm = self._prm
