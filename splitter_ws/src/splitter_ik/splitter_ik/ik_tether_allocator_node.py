@@ -106,6 +106,14 @@ PARAMETERS = (
         max_value=1e4,
     ),
     ParameterSpec(
+        "low_spin_tension_fraction",
+        0.5,
+        "share of the centripetal tether load kept as tension when the load is under "
+        "tension_margin_n (slow spin across the tether) [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    ),
+    ParameterSpec(
         "speed_fraction",
         1.0,
         "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
@@ -236,6 +244,7 @@ class IkTetherAllocatorNode(Node):
             return AllocatorConfig(
                 control_period_s=float(values["control_period_s"]),
                 tension_margin_n=float(values["tension_margin_n"]),
+                low_spin_tension_fraction=float(values["low_spin_tension_fraction"]),
                 speed_fraction=float(values["speed_fraction"]),
                 limb_acceleration_fraction=float(values["limb_acceleration_fraction"]),
                 tether_acceleration_fraction=float(values["tether_acceleration_fraction"]),
@@ -455,7 +464,7 @@ class IkTetherAllocatorNode(Node):
             "max_saturation_kg_m2": w.max_saturation,
             "max_limb_joint_speed_rad_s": w.max_joint_speed,
             "max_tether_speed_m_s": w.max_tether_speed,
-            "required_tension_n": self.config.tension_margin_n,
+            "tension_margin_setting_n": self.config.tension_margin_n,
         }
         for key, count in sorted(rejection_counts(self).items()):
             values[f"total_warnings_{key}"] = count
@@ -473,6 +482,7 @@ class IkTetherAllocatorNode(Node):
             )
             if math.isfinite(a.tension_n):
                 values["tension_n"] = a.tension_n
+                values["required_tension_n"] = a.required_tension_n
                 values["tension_margin_n"] = a.tension_margin_n
         if math.isfinite(w.min_margin):
             values["min_tension_margin_n"] = w.min_margin

@@ -15,8 +15,11 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    reel-in can be braked, so reel-in speeds are planned with the braking available
    on the way to the target, the spin there predicted from conserved angular
    momentum (``w_i I_i`` constant). A reel-in that could not be braked taut is not
-   started; when the spin cannot hold the margin even at rest, the tether is held
-   (never paid out), taut with the centripetal tension ``M_h r_x w_perp^2``,
+   started. ``T_min`` is the configured margin; reeling in, it is at most half the
+   centripetal load ``M_h r_x w_perp^2`` (:meth:`TetherLimbAllocator.required_tension_n`),
+   so that a spin too slow for the margin can still be reeled in (which only adds
+   tension) and braked by the spin-up the reel-in brings; paying out keeps the full
+   margin, and when the spin cannot hold it even at rest the tether is held,
 4. turns the radii into the 25 joint positions with
    ``splitter_model.kinematics.joint_positions_from_radii``.
 
@@ -49,7 +52,7 @@ from splitter_ik.core.tether import (
     reeling_tether_tension,
 )
 from splitter_model.kinematics import joint_positions_from_radii
-from splitter_model.model import RobotModel, principal_inertia
+from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
 
 TETHER_JOINT_INDEX = 24
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
@@ -66,6 +69,13 @@ class AllocatorConfig:
     # [N] least tether tension kept while reeling; 1 N keeps a light tether straight
     # and is 4 % of the tension of the paper's spin (9 kg * 2.8 m * 1 rad^2/s^2).
     tension_margin_n: float = 1.0
+    # [-] share of the centripetal load kept as tension when that load is under the
+    # margin (a slow spin across the tether): the requirement is then
+    # ``min(tension_margin_n, fraction * M_h r_x w_perp^2)``, still taut. A reel-in
+    # only adds tension (inward acceleration, then a faster spin), so a slow spin may
+    # be reeled in, which is how its rate is raised. With the margin alone the tether
+    # was held whenever M_h r_x w_perp^2 < 1 N (|H| < ~28 kg m^2/s at r_x = 2.8 m).
+    low_spin_tension_fraction: float = 0.5
     speed_fraction: float = 1.0  # [-] share of the joint and reel speed limits used, (0, 1]
     # Shares of the acceleration limits commanded, (0, 1]. The limits are the actuators'
     # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
@@ -83,6 +93,7 @@ class AllocatorConfig:
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
         for name in (
+            "low_spin_tension_fraction",
             "speed_fraction",
             "limb_acceleration_fraction",
             "tether_acceleration_fraction",
@@ -105,7 +116,8 @@ class Allocation:
     saturated: bool  # the setpoint was outside the reachable set (projected)
     rate_limited: bool  # limits keep the next planned radii short of the projected setpoint
     tension_n: float  # [N] tether tension at t_ns (planned reel acceleration); NaN without w
-    tension_margin_n: float  # [N] tension_n - config.tension_margin_n (< 0: requirement missed)
+    required_tension_n: float  # [N] least tension kept this tick (AllocatorConfig); NaN without w
+    tension_margin_n: float  # [N] tension_n - required_tension_n (< 0: requirement missed)
 
 
 @dataclass(frozen=True)
@@ -249,15 +261,18 @@ class TetherLimbAllocator:
             joint_velocity = np.zeros(25)
             rate_limited = False
             radius_x_prev, radius_x_accel = float(projection.radii_m[0]), 0.0
+            reeling_in = False
         else:
             drive = np.empty(3)
             rate = np.empty(3)
             radius_x_prev = float(start.drive[0]) / 2.0
             taut_cap = taut_brake = math.inf
+            # toward a shorter tether, or still moving in (braking is the same physics)
+            reeling_in = bool(target[0] < start.drive[0] or start.drive_rate[0] < 0.0)
             if w is not None:  # on the tether length L = 2 r_x
-                margin = self.config.tension_margin_n
+                margin = self.required_tension_n(w, radius_x_prev, reeling_in)
                 taut_cap = 2.0 * max_taut_radius_acceleration(self.model, w, radius_x_prev, margin)
-                taut_brake = self._reel_in_braking(start.drive, target, w, margin)
+                taut_brake = self._reel_in_braking(start.drive, target, w, reeling_in)
             for i in range(3):
                 drive[i], rate[i] = limited_step(
                     float(start.drive[i]),
@@ -282,9 +297,10 @@ class TetherLimbAllocator:
         self._previous, self._state = start, state
         radii = self._radii_from_drive(here.drive)
         if w is None:
-            tension = math.nan
+            tension = required = math.nan
         else:
             tension = reeling_tether_tension(self.model, w, radius_x_prev, radius_x_accel)
+            required = self.required_tension_n(w, radius_x_prev, reeling_in)
         return Allocation(
             t_ns=t_ns,
             joint_position=_frozen(here.joint_position),
@@ -295,21 +311,37 @@ class TetherLimbAllocator:
             saturated=projection.saturated,
             rate_limited=rate_limited,
             tension_n=tension,
-            tension_margin_n=tension - self.config.tension_margin_n,
+            required_tension_n=required,
+            tension_margin_n=tension - required,
         )
+
+    def required_tension_n(
+        self, angular_velocity_rad_s: ArrayLike, radius_x_m: float, reeling_in: bool = False
+    ) -> float:
+        """Least tension [N] kept at this spin and tether half-length.
+
+        The configured margin; on the way in, the configured share of the centripetal
+        load ``M_h r_x w_perp^2`` when the spin across the tether is too slow for the
+        margin (a reel-in raises the tension; paying out keeps the full margin).
+        """
+        if not reeling_in:
+            return self.config.tension_margin_n
+        steady = tether_tension_3d(self.model, angular_velocity_rad_s, radius_x_m)
+        return min(self.config.tension_margin_n, self.config.low_spin_tension_fraction * steady)
 
     def _reel_in_braking(
         self,
         drive: NDArray[np.float64],
         target: NDArray[np.float64],
         w: NDArray[np.float64],
-        margin_n: float,
+        reeling_in: bool,
     ) -> float:
         """Constant deceleration [m/s^2 of L] equivalent to the taut braking left to the target.
 
         The taut bound on ``r_x''`` is sampled on the way from the target back to the
         tether's current length, with the spin predicted there from conserved angular
-        momentum about each principal axis (``w_i I_i`` constant). Where it is
+        momentum about each principal axis (``w_i I_i`` constant) and the tension
+        required at that spin (:meth:`required_tension_n`). Where it is
         positive the tether may brake at it (capped by the reel); where it is not, it
         may only coast. Integrating ``d(v^2) = 2 a dL`` from rest at the target gives
         the highest reel-in speed from which the tether still stops taut; it is
@@ -322,6 +354,7 @@ class TetherLimbAllocator:
             point = target + f * (drive - target)
             radii = self._radii_from_drive(point)
             w_f = w * i_now / principal_inertia(self.model, radii)
+            margin_n = self.required_tension_n(w_f, float(radii[0]), reeling_in)
             caps.append(2.0 * max_taut_radius_acceleration(self.model, w_f, radii[0], margin_n))
             lengths.append(float(point[0]))
         if distance <= 0.0:
