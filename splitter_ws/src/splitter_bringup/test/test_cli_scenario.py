@@ -30,7 +30,7 @@ def test_shipped_scenarios_load_with_paper_numbers() -> None:
     spin = load_scenario("spin_stabilization")
     np.testing.assert_allclose(spin.initial_angular_velocity_rad_s, [-0.3, -0.9, 0.9])
     assert spin.controller.r == (0.01, 1.0, 1.0)
-    assert spin.variants == ("mpc", "paper_mpc", "open_loop")
+    assert spin.variants == ("mpc", "paper_mpc", "open_loop", "recovery")
     c = spin.controller
     assert (c.objective, c.horizon, c.dt_s, c.integrator) == ("momentum", 25, 0.1, "rk4")
     assert c.weights_step_s == 0.05  # Table I's weights per 50 ms, on a 100 ms grid

@@ -87,6 +87,14 @@ PARAMETERS = (
         1.0,
     ),
     ParameterSpec(
+        "recovery_spin_rad_s",
+        0.0,
+        "supervisory recovery: while the body turns across the reference axis, ask the MPC "
+        "for at least this spin about it [rad/s] (0: off)",
+        0.0,
+        100.0,
+    ),
+    ParameterSpec(
         "integrator",
         "euler",
         "prediction model integrator (euler: the paper's)",
@@ -174,6 +182,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
             mpc=settings_for_weights(mpc, weights),
             replan_period_s=float(values["replan_period_s"]),
             control_period_s=float(values["control_period_s"]),
+            recovery_spin_rad_s=float(values["recovery_spin_rad_s"]),
         )
     except ValueError as exc:
         raise InvalidParameterError(f"parameters (horizon/dt_s/periods/solver): {exc}") from exc
@@ -402,6 +411,7 @@ class InertialMorphingMpcNode(Node):
             "failures": s.failures,
             "deadline_misses": s.deadline_misses,
             "consecutive_failures": s.consecutive_failures,
+            "recovering": s.recovering,
             "setpoint_ixx_kg_m2": s.setpoint_kg_m2[0],
             "setpoint_iyy_kg_m2": s.setpoint_kg_m2[1],
             "setpoint_izz_kg_m2": s.setpoint_kg_m2[2],

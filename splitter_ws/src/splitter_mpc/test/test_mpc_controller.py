@@ -155,3 +155,49 @@ def test_a_late_solve_is_not_executed(isolated: bool, status: str, misses: int) 
     assert ctl.status.solve_status.startswith(status) and not ctl.status.solve_ok
     assert ctl.plan is None and ctl.status.failures == 1
     assert ctl.status.deadline_misses == misses
+
+
+def test_recovery_asks_for_the_recovery_spin_until_the_body_has_turned(mpc, monkeypatch) -> None:
+    """Hysteresis on the rate across the reference axis: in above 0.05, out under 0.005."""
+    given = []
+    solve = mpc.solve
+
+    def recording_solve(t_ns, state, w_ref, *args, **kwargs):
+        given.append(np.array(w_ref, dtype=float))
+        return solve(t_ns, state, w_ref, *args, **kwargs)
+
+    monkeypatch.setattr(mpc, "solve", recording_solve)
+    ctl = controller(mpc, recovery_spin_rad_s=2.0)
+    rates = [  # [rad/s] body rate, the rate across y it has
+        W0,  # 0.95: in
+        np.array([0.02, 1.0, 0.0]),  # 0.02: still in
+        np.array([0.003, 1.0, -0.002]),  # 0.0036: out
+        np.array([0.02, 1.0, 0.0]),  # 0.02: still out
+        np.array([0.0, 1.0, 0.08]),  # 0.08: in again
+    ]
+    recovering = []
+    for k, w in enumerate(rates):
+        ctl.on_state(k * 100 * MS, w, Q0, I0, "IN_FLIGHT")
+        assert ctl.status.replanned
+        recovering.append(ctl.status.recovering)
+    assert recovering == [True, True, False, False, True]
+    expected = [[0.0, 2.0, 0.0] if r else [0.0, 1.0, 0.0] for r in recovering]
+    np.testing.assert_array_equal(np.array(given), expected)
+    # off by default; a reference faster than the recovery spin is never slowed down
+    plain = controller(mpc)
+    plain.on_state(0, W0, Q0, I0, "IN_FLIGHT")
+    assert not plain.status.recovering
+    np.testing.assert_array_equal(given[-1], [0.0, 1.0, 0.0])
+    fast = controller(mpc, recovery_spin_rad_s=0.5)
+    fast.on_state(0, W0, Q0, I0, "IN_FLIGHT")
+    assert fast.status.recovering
+    np.testing.assert_array_equal(given[-1], [0.0, 1.0, 0.0])
+
+
+def test_config_rejects_bad_recovery_settings() -> None:
+    with pytest.raises(ValueError, match="recovery_spin_rad_s"):
+        ControllerConfig(recovery_spin_rad_s=-1.0)
+    with pytest.raises(ValueError, match="recovery_enter_rate_rad_s"):
+        ControllerConfig(recovery_enter_rate_rad_s=float("nan"))
+    with pytest.raises(ValueError, match="recovery_exit_rate_rad_s must be <="):
+        ControllerConfig(recovery_exit_rate_rad_s=0.1, recovery_enter_rate_rad_s=0.05)

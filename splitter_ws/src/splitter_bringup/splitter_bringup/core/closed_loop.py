@@ -169,7 +169,9 @@ def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> Con
         weights_step_s=c.weights_step_s,
     )
     mpc = settings_for_weights(formulation, weights)
-    return ControllerConfig(enabled=c.enabled, weights=weights, mpc=mpc)
+    return ControllerConfig(
+        enabled=c.enabled, weights=weights, mpc=mpc, recovery_spin_rad_s=c.recovery_spin_rad_s
+    )
 
 
 def run_closed_loop(

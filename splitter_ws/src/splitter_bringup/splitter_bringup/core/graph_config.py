@@ -103,6 +103,7 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
         "dt_s": float(c.dt_s),
         "integrator": c.integrator,
         "weights_step_s": 0.0 if c.weights_step_s is None else float(c.weights_step_s),
+        "recovery_spin_rad_s": float(c.recovery_spin_rad_s),
     }
 
 

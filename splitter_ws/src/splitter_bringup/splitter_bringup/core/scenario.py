@@ -75,6 +75,10 @@ class ControllerSpec:
     # [s] the prediction step the weights are given for (None: per stage, whatever
     # the step); with it the stage weights keep one continuous-time cost on any grid
     weights_step_s: float | None = None
+    # [rad/s] supervisory recovery spin (0: off): while the body turns across the
+    # reference axis, the MPC is asked for at least this spin about it
+    # (splitter_mpc.core.controller.ControllerConfig)
+    recovery_spin_rad_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -166,6 +170,17 @@ def _positive(data: Mapping[str, Any], key: str, default: float | None = None) -
     return number
 
 
+def _non_negative(data: Mapping[str, Any], key: str, default: float) -> float:
+    value = data.get(key, default)
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{key}: expected a number, got {value!r}") from exc
+    if not (math.isfinite(number) and number >= 0.0):
+        raise ScenarioError(f"{key}: must be finite and >= 0, got {value!r}")
+    return number
+
+
 def _horizon(data: Mapping[str, Any]) -> int:
     value = data.get("horizon", 50)
     if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 1000:
@@ -244,6 +259,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         weights_step_s=(
             None if ctrl.get("weights_step_s") is None else _positive(ctrl, "weights_step_s")
         ),
+        recovery_spin_rad_s=_non_negative(ctrl, "recovery_spin_rad_s", 0.0),
     )
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")

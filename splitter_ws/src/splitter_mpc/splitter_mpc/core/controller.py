@@ -54,12 +54,31 @@ class ControllerConfig:
     replan_period_s: float = 0.1  # [s]
     control_period_s: float = 0.01  # [s]
     nominal_inertia_kg_m2: tuple[float, float, float] | None = None  # held when inactive
+    # Recovery (supervisory): while the body rate across the reference axis is above
+    # ``recovery_enter_rate_rad_s``, the MPC is asked for a spin of at least
+    # ``recovery_spin_rad_s`` about that axis (0: off), until that rate falls under
+    # ``recovery_exit_rate_rad_s``; then for the reference again. A tumble is turned
+    # into a spin about the axis about as fast as that spin turns (README, "Random
+    # tumbles"): a faster spin recovers faster, and the tether is reeled in for it.
+    recovery_spin_rad_s: float = 0.0  # [rad/s]
+    recovery_enter_rate_rad_s: float = 0.05  # [rad/s]
+    recovery_exit_rate_rad_s: float = 0.005  # [rad/s]
 
     def __post_init__(self) -> None:
         for name in ("replan_period_s", "control_period_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        recovery = ("recovery_spin_rad_s", "recovery_enter_rate_rad_s", "recovery_exit_rate_rad_s")
+        for name in recovery:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+        if self.recovery_exit_rate_rad_s > self.recovery_enter_rate_rad_s:
+            raise ValueError(
+                "recovery_exit_rate_rad_s must be <= recovery_enter_rate_rad_s, got "
+                f"{self.recovery_exit_rate_rad_s} > {self.recovery_enter_rate_rad_s}"
+            )
         replan, tick = self.replan_period_ns, self.control_period_ns
         if replan % tick != 0 or replan % self.mpc.dt_ns != 0:
             raise ValueError(
@@ -106,6 +125,7 @@ class ControllerStatus:
     failures: int = 0
     deadline_misses: int = 0  # solves abandoned at their wall-time deadline
     consecutive_failures: int = 0
+    recovering: bool = False  # the MPC is asked for the recovery spin (ControllerConfig)
     setpoint_kg_m2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
 
@@ -137,6 +157,7 @@ class MorphingController:
             else np.asarray(self.config.nominal_inertia_kg_m2, dtype=float)
         )
         self._last_setpoint: NDArray[np.float64] | None = None
+        self._recovering = False
         self._failures_to_inject = 0
         self._status = ControllerStatus(solver=self.mpc.settings.solver)
         self.last_plan_result = None
@@ -244,6 +265,7 @@ class MorphingController:
                 setpoint = self._nominal.copy()
         else:
             if self._plan is None or t_ns % self.config.replan_period_ns == 0:
+                self._update_recovery(w)
                 status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))
             setpoint = (
                 inertia.copy()
@@ -260,10 +282,36 @@ class MorphingController:
                 **self._status.__dict__,
                 **status,
                 "plan_age_s": plan_age,
+                "recovering": self._recovering and active,
                 "setpoint_kg_m2": tuple(float(v) for v in setpoint),
             }
         )
         return setpoint
+
+    def _update_recovery(self, w: NDArray[np.float64]) -> None:
+        """Enter or leave recovery from the body rate across the reference axis."""
+        c = self.config
+        w_ref = np.asarray(self._reference.w_ref_rad_s, dtype=float)
+        speed = float(np.linalg.norm(w_ref))
+        if c.recovery_spin_rad_s <= 0.0 or speed < 1e-9:
+            self._recovering = False
+            return
+        axis = w_ref / speed
+        across = float(np.linalg.norm(w - axis * float(axis @ w)))
+        if self._recovering and across < c.recovery_exit_rate_rad_s:
+            self._recovering = False
+            _LOG.debug("recovered: %.4f rad/s across the reference axis", across)
+        elif not self._recovering and across > c.recovery_enter_rate_rad_s:
+            self._recovering = True
+            _LOG.debug("recovering: %.3f rad/s across the reference axis", across)
+
+    def spin_reference(self) -> NDArray[np.float64]:
+        """The w_ref the MPC is given: the reference's, or its axis at the recovery spin."""
+        w_ref = np.asarray(self._reference.w_ref_rad_s, dtype=float)
+        speed = float(np.linalg.norm(w_ref))
+        if not self._recovering or speed >= self.config.recovery_spin_rad_s:
+            return w_ref
+        return w_ref * (self.config.recovery_spin_rad_s / speed)
 
     def _replan(self, t_ns: int, state: NDArray[np.float64]) -> dict:
         previous = self._status
@@ -271,7 +319,7 @@ class MorphingController:
             plan = self.mpc.solve(
                 t_ns,
                 state,
-                self._reference.w_ref_rad_s,
+                self.spin_reference(),
                 self.attitude_references(t_ns),
                 self.weights,
                 nominal_inertia_kg_m2=self._nominal,
