@@ -26,7 +26,7 @@ def test_run_writes_summary_series_and_plots(tmp_path, capsys) -> None:
     assert splitter(["run", str(scenario), "--out", str(out), "--no-ros", "--no-compile"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["backend"] == "library" and summary["main_variant"] == "mpc"
-    assert set(summary["variants"]) == {"mpc", "paper_mpc", "open_loop"}
+    assert set(summary["variants"]) == {"mpc", "paper_mpc", "open_loop", "recovery"}
     for key, paper in (("residual_wx", 0.004), ("wy_final", 1.28), ("max_g", 0.47)):
         assert summary["metrics"][key]["paper"] == paper
         assert np.isfinite(summary["metrics"][key]["value"])
