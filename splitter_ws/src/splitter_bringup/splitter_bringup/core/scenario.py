@@ -159,25 +159,18 @@ def _vector(data: Mapping[str, Any], key: str, default: list[float] | None = Non
     return arr
 
 
-def _positive(data: Mapping[str, Any], key: str, default: float | None = None) -> float:
+def _positive(
+    data: Mapping[str, Any], key: str, default: float | None = None, *, zero_ok: bool = False
+) -> float:
+    """``data[key]`` as a finite number > 0 (>= 0 with ``zero_ok``)."""
     value = data.get(key, default)
     try:
         number = float(value)
     except (TypeError, ValueError) as exc:
         raise ScenarioError(f"{key}: expected a number, got {value!r}") from exc
-    if not (math.isfinite(number) and number > 0.0):
-        raise ScenarioError(f"{key}: must be finite and > 0, got {value!r}")
-    return number
-
-
-def _non_negative(data: Mapping[str, Any], key: str, default: float) -> float:
-    value = data.get(key, default)
-    try:
-        number = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ScenarioError(f"{key}: expected a number, got {value!r}") from exc
-    if not (math.isfinite(number) and number >= 0.0):
-        raise ScenarioError(f"{key}: must be finite and >= 0, got {value!r}")
+    if not (math.isfinite(number) and (number > 0.0 or (zero_ok and number == 0.0))):
+        bound = ">= 0" if zero_ok else "> 0"
+        raise ScenarioError(f"{key}: must be finite and {bound}, got {value!r}")
     return number
 
 
@@ -259,7 +252,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         weights_step_s=(
             None if ctrl.get("weights_step_s") is None else _positive(ctrl, "weights_step_s")
         ),
-        recovery_spin_rad_s=_non_negative(ctrl, "recovery_spin_rad_s", 0.0),
+        recovery_spin_rad_s=_positive(ctrl, "recovery_spin_rad_s", 0.0, zero_ok=True),
     )
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")
