@@ -114,6 +114,14 @@ PARAMETERS = (
         max_value=1.0,
     ),
     ParameterSpec(
+        "reference_velocity_window_s",
+        AllocatorConfig.reference_velocity_window_s,
+        "the reel follows the setpoints' mean velocity over this window (one MPC re-plan "
+        "period), braking taut; 0: each setpoint approached as a resting target [s]",
+        min_value=0.0,
+        max_value=10.0,
+    ),
+    ParameterSpec(
         "speed_fraction",
         1.0,
         "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
@@ -245,6 +253,7 @@ class IkTetherAllocatorNode(Node):
                 control_period_s=float(values["control_period_s"]),
                 tension_margin_n=float(values["tension_margin_n"]),
                 low_spin_tension_fraction=float(values["low_spin_tension_fraction"]),
+                reference_velocity_window_s=float(values["reference_velocity_window_s"]),
                 speed_fraction=float(values["speed_fraction"]),
                 limb_acceleration_fraction=float(values["limb_acceleration_fraction"]),
                 tether_acceleration_fraction=float(values["tether_acceleration_fraction"]),

@@ -200,6 +200,64 @@ def test_a_spin_too_slow_for_the_margin_is_reeled_in_taut() -> None:
     assert a.required_tension_n == 1.0
 
 
+def _reel_in_ramp(window_s: float, stop_radius_m: float) -> dict[str, np.ndarray]:
+    """The 0.3 N spin of the test above, the setpoint moving in at 0.25 m/s (r_x) until
+    ``stop_radius_m``, then resting there: a plan played back tick by tick."""
+    m_h = hemi_mass_kg(MODEL)
+    start = np.array([2.8, 0.2, 0.2])
+    w_y0 = math.sqrt(0.3 / (m_h * 2.8))
+    momentum_y = w_y0 * float(principal_inertia(MODEL, start)[1])
+    config = AllocatorConfig(reference_velocity_window_s=window_s)
+    allocator = TetherLimbAllocator(MODEL, config, initial_radii_m=start)
+    radii, out = start, {"tether": [], "tension": [], "required": [], "reference": []}
+    for k in range(1500):
+        r_ref = max(stop_radius_m, 2.8 - 0.25 * k * DT)
+        a = allocator.allocate(
+            k * PERIOD_NS,
+            principal_inertia(MODEL, [r_ref, 0.2, 0.2]),
+            _spin_about_y(radii, momentum_y),
+        )
+        radii = np.array(allocator.radii_m)
+        out["tether"].append(a.joint_position[TETHER])
+        out["tension"].append(a.tension_n)
+        out["required"].append(a.required_tension_n)
+        out["reference"].append(2.0 * r_ref)
+    return {key: np.array(value) for key, value in out.items()}
+
+
+def test_a_moving_setpoint_is_followed_at_its_speed_taut() -> None:
+    """A slow spin's reel-in planned at 0.25 m/s is followed at that speed, never slack.
+
+    Without the setpoint's velocity the reel approached each 10 ms setpoint as if the
+    plan stopped there, which the slow spin can only brake taut from a crawl.
+    """
+    followed = _reel_in_ramp(0.1, 1.6)
+    crawling = _reel_in_ramp(0.0, 1.6)
+    t_half = 0.5 * (2.8 - 1.6) / 0.25  # [s] half-way down the 4.8 s ramp
+    k = round(t_half / DT)
+    lag_followed = followed["tether"][k] - followed["reference"][k]
+    lag_crawling = crawling["tether"][k] - crawling["reference"][k]
+    assert lag_followed < 0.1  # [m] of tether length, half-way down the ramp
+    assert lag_crawling > 3.0 * lag_followed
+    # time to reach 1.7 m of r_x (3.4 m of tether): the ramp's 4.4 s against a crawl
+    reached_followed = np.argmax(followed["tether"] <= 3.4) * DT
+    reached_crawling = np.argmax(crawling["tether"] <= 3.4) * DT
+    assert reached_followed < 5.0
+    assert reached_crawling > 1.3 * reached_followed or crawling["tether"].min() > 3.4
+    for run in (followed, crawling):
+        assert np.all(run["tension"][1:] >= run["required"][1:] - 1e-6)  # taut throughout
+
+
+def test_a_plan_stopping_faster_than_the_spin_can_brake_is_overshot_taut() -> None:
+    """The reel-in stops at 1.6 m abruptly: braked taut, so past it, then back, never slack."""
+    run = _reel_in_ramp(0.1, 1.6)
+    tether = run["tether"]
+    assert np.min(tether) < 3.2 - 1e-3  # overshot the stop...
+    assert np.min(tether) > MODEL.tether_length_min_m  # ...before the reel's end
+    assert tether[-1] == pytest.approx(3.2, abs=1e-6)  # and back on it
+    assert np.all(run["tension"][1:] >= run["required"][1:] - 1e-6)
+
+
 def test_without_spin_the_tether_is_never_paid_out() -> None:
     allocator = TetherLimbAllocator(MODEL, initial_radii_m=[1.5, 0.2, 0.2])
     allocations = _run(
@@ -270,6 +328,8 @@ def test_tension_is_nan_only_without_angular_velocity() -> None:
         {"speed_fraction": 1.5},
         {"limb_acceleration_fraction": 0.0},
         {"tether_acceleration_fraction": 1.01},
+        {"reference_velocity_window_s": -0.1},
+        {"reference_velocity_window_s": math.inf},
     ],
 )
 def test_config_is_validated(kwargs: dict[str, float]) -> None:

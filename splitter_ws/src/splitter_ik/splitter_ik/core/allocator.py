@@ -19,7 +19,12 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    centripetal load ``M_h r_x w_perp^2`` (:meth:`TetherLimbAllocator.required_tension_n`),
    so that a spin too slow for the margin can still be reeled in (which only adds
    tension) and braked by the spin-up the reel-in brings; paying out keeps the full
-   margin, and when the spin cannot hold it even at rest the tether is held,
+   margin, and when the spin cannot hold it even at rest the tether is held. The
+   reel follows the setpoints' own velocity (their mean over
+   ``AllocatorConfig.reference_velocity_window_s``, one re-plan period) and closes
+   the gap on top of it, so a planned reel-in runs at the plan's speed; if the plan
+   then stops faster than the spin can brake taut, the reel overshoots, braking
+   taut, and still stops taut before its end,
 4. turns the radii into the 25 joint positions with
    ``splitter_model.kinematics.joint_positions_from_radii``.
 
@@ -76,6 +81,13 @@ class AllocatorConfig:
     # be reeled in, which is how its rate is raised. With the margin alone the tether
     # was held whenever M_h r_x w_perp^2 < 1 N (|H| < ~28 kg m^2/s at r_x = 2.8 m).
     low_spin_tension_fraction: float = 0.5
+    # [s] the reel follows the setpoint's mean velocity over this window (one re-plan
+    # period: a new plan restarts from the measured radii) and closes the gap on top
+    # of it; 0: every setpoint is approached as if it were to rest there. A reel-in is
+    # braked taut, so a plan that stops its reel-in faster than the spin allows is
+    # overshot. With 0, a slow spin's reel-in crept at what could stop taut at the
+    # next 10 ms setpoint (2.8 -> 1.55 m in 12 s where the MPC planned 2.5 s).
+    reference_velocity_window_s: float = 0.1
     speed_fraction: float = 1.0  # [-] share of the joint and reel speed limits used, (0, 1]
     # Shares of the acceleration limits commanded, (0, 1]. The limits are the actuators'
     # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
@@ -92,6 +104,12 @@ class AllocatorConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
+        window = self.reference_velocity_window_s
+        if not (isinstance(window, int | float) and math.isfinite(window) and window >= 0.0):
+            raise ValueError(
+                "AllocatorConfig.reference_velocity_window_s must be finite and >= 0, "
+                f"got {window!r}"
+            )
         for name in (
             "low_spin_tension_fraction",
             "speed_fraction",
@@ -180,6 +198,7 @@ class TetherLimbAllocator:
         self._q_max = np.array(limb_max * 8 + [model.tether_length_max_m])
         self._state: _State | None = None
         self._previous: _State | None = None
+        self._tether_targets: list[tuple[int, float]] = []  # (t_ns, L) setpoints in the window
         if initial_radii_m is not None:
             radii = np.asarray(initial_radii_m, dtype=float)
             if radii.shape != (3,) or not np.all(np.isfinite(radii)):
@@ -230,6 +249,7 @@ class TetherLimbAllocator:
         """Forget the history; restart from rest at ``radii_m`` (or at the next setpoint)."""
         fresh = TetherLimbAllocator(self.model, self.config, radii_m)
         self._state, self._previous = fresh._state, None
+        self._tether_targets = []
 
     # --- the tick ----------------------------------------------------------------
     def allocate(
@@ -267,12 +287,20 @@ class TetherLimbAllocator:
             rate = np.empty(3)
             radius_x_prev = float(start.drive[0]) / 2.0
             taut_cap = taut_brake = math.inf
+            lower_brake = None
+            tether_velocity = self._tether_reference_velocity(t_ns, float(target[0]))
             # toward a shorter tether, or still moving in (braking is the same physics)
-            reeling_in = bool(target[0] < start.drive[0] or start.drive_rate[0] < 0.0)
+            reeling_in = bool(
+                target[0] < start.drive[0] or start.drive_rate[0] < 0.0 or tether_velocity < 0.0
+            )
             if w is not None:  # on the tether length L = 2 r_x
                 margin = self.required_tension_n(w, radius_x_prev, reeling_in)
                 taut_cap = 2.0 * max_taut_radius_acceleration(self.model, w, radius_x_prev, margin)
                 taut_brake = self._reel_in_braking(start.drive, target, w, reeling_in)
+                if reeling_in:  # a taut stop before the reel's end
+                    end = target.copy()
+                    end[0] = self._limits[0].lower
+                    lower_brake = self._reel_in_braking(start.drive, end, w, reeling_in)
             for i in range(3):
                 drive[i], rate[i] = limited_step(
                     float(start.drive[i]),
@@ -282,6 +310,8 @@ class TetherLimbAllocator:
                     self._limits[i],
                     positive_acceleration_max=taut_cap if i == 0 else math.inf,
                     approach_braking_max=taut_brake if i == 0 else None,
+                    target_velocity=tether_velocity if i == 0 else 0.0,
+                    lower_braking_max=lower_brake if i == 0 else None,
                 )
             radii = self._radii_from_drive(drive)
             q = self._joint_positions(radii)
@@ -328,6 +358,23 @@ class TetherLimbAllocator:
             return self.config.tension_margin_n
         steady = tether_tension_3d(self.model, angular_velocity_rad_s, radius_x_m)
         return min(self.config.tension_margin_n, self.config.low_spin_tension_fraction * steady)
+
+    def _tether_reference_velocity(self, t_ns: int, length_m: float) -> float:
+        """Mean velocity [m/s] of the tether-length setpoints over the configured window.
+
+        ``length_m`` (the projected setpoint at ``t_ns``) joins the history; a repeated
+        stamp replaces its entry. 0 without a window or an earlier setpoint in it.
+        """
+        window_ns = round(self.config.reference_velocity_window_s * 1e9)
+        history = [(t, x) for t, x in self._tether_targets if t < t_ns and t >= t_ns - window_ns]
+        history.append((t_ns, length_m))
+        self._tether_targets = history
+        t_first, x_first = history[0]
+        if window_ns <= 0 or t_first >= t_ns:
+            return 0.0
+        speed_max = self._limits[0].speed_max
+        velocity = (length_m - x_first) / ((t_ns - t_first) * 1e-9)
+        return min(max(velocity, -speed_max), speed_max)
 
     def _reel_in_braking(
         self,

@@ -6,6 +6,12 @@ at the range ends) with the available deceleration. Priorities, highest first:
 range, speed and acceleration of the actuator, then an optional cap on positive
 acceleration (the taut-tether bound), which is relaxed only so far as never to
 force the coordinate to speed up in the negative direction.
+
+A target that moves (a reference trajectory played back tick by tick) may be given
+its velocity: the coordinate then heads for it in the target's frame, at the
+target's velocity plus a closing speed, instead of as if the target would stop
+where it is now. Where the target's own stop needs more deceleration than the
+caps allow, the coordinate overshoots it, braking at the caps.
 """
 
 from __future__ import annotations
@@ -50,25 +56,34 @@ def limited_step(
     *,
     positive_acceleration_max: float = math.inf,
     approach_braking_max: float | None = None,
+    target_velocity: float = 0.0,
+    lower_braking_max: float | None = None,
 ) -> tuple[float, float]:
     """(x_new, v_new) one control period toward ``target``.
 
     ``positive_acceleration_max`` caps the increase of ``v`` per second; it also
     limits how hard a negative velocity may be braked, so an approach from above
     is planned with ``approach_braking_max`` (default: that cap at the current
-    state; pass the cap at the target when it shrinks on the way).
+    state; pass the cap at the target when it shrinks on the way), and the lower
+    range end with ``lower_braking_max`` (default: the actuator's deceleration).
+    ``target_velocity`` is the target's own velocity (0: a resting target).
     """
     a_max = limits.acceleration_max
     if approach_braking_max is None:
         approach_braking_max = positive_acceleration_max
     error = target - x
     if error >= 0.0:
-        v_des = min(limits.speed_max, error / dt, braking_speed(error, a_max, dt))
+        closing = min(error / dt, braking_speed(error, a_max, dt))
     else:
         brake = max(min(a_max, approach_braking_max), 0.0)
-        v_des = -min(limits.speed_max, -error / dt, braking_speed(-error, brake, dt))
+        closing = -min(-error / dt, braking_speed(-error, brake, dt))
+    v_des = min(max(target_velocity + closing, -limits.speed_max), limits.speed_max)
     # actuator speed and acceleration, and stopping before the range ends
     v_lo = max(-limits.speed_max, v - a_max * dt, -braking_speed(x - limits.lower, a_max, dt))
+    if lower_braking_max is not None:  # ... with a gentler braking, as far as the actuator can
+        lower_brake = max(min(a_max, lower_braking_max), 0.0)
+        gentle = -braking_speed(x - limits.lower, lower_brake, dt)
+        v_lo = max(v_lo, min(gentle, v + a_max * dt))
     v_hi = min(limits.speed_max, v + a_max * dt, braking_speed(limits.upper - x, a_max, dt))
     if math.isfinite(positive_acceleration_max):
         # taut cap; never forces a speed-up in the negative direction
