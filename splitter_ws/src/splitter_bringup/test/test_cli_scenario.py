@@ -38,9 +38,12 @@ def test_shipped_scenarios_load_with_paper_numbers() -> None:
     assert (paper.objective, paper.dt_s, paper.q_w) == ("paper", 0.01, (100.0, 100.0, 100.0))
     assert (paper.horizon, paper.integrator, paper.weights_step_s) == (50, "euler", None)
     assert not load_scenario("spin_stabilization", "open_loop").controller.enabled
-    assert c.recovery_spin_rad_s == 0.0  # Table I's variant flies without it
+    # Table I's variant: recovery only for tumbles too slow for the reference spin
+    assert (c.recovery_spin_rad_s, c.recovery_momentum_ratio_max) == (2.0, 1.0)
     recovery = load_scenario("spin_stabilization", "recovery").controller
     assert (recovery.recovery_spin_rad_s, recovery.objective) == (2.0, "momentum")
+    assert recovery.recovery_momentum_ratio_max is None  # any tumble
+    assert load_scenario("spin_stabilization", "paper_mpc").controller.recovery_spin_rad_s == 0.0
     orient = load_scenario("orientation_tracking", "velocity_only")
     assert orient.controller.q_q == 0.0
     assert orient.controller.attitude_reference == "momentum_aligned"
@@ -72,6 +75,8 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         ("attitude_reference", "nope"),
         ("recovery_spin_rad_s", "-1.0"),
         ("recovery_spin_rad_s", ".nan"),
+        ("recovery_momentum_ratio_max", "0"),
+        ("recovery_momentum_ratio_max", "-1"),
     ):
         bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
         with pytest.raises(ScenarioError, match=field):

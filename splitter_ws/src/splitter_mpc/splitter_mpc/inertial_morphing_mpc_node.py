@@ -95,6 +95,15 @@ PARAMETERS = (
         100.0,
     ),
     ParameterSpec(
+        "recovery_momentum_ratio_max",
+        1.0e9,
+        "recovery only for a tumble whose slowest spin about the reference axis, |H| / "
+        "I_max, is under this multiple of |w_ref| [-] (1: the reference spin is reachable; "
+        "1e9: any tumble)",
+        1.0e-3,
+        1.0e9,
+    ),
+    ParameterSpec(
         "integrator",
         "euler",
         "prediction model integrator (euler: the paper's)",
@@ -183,6 +192,7 @@ def controller_config_from_parameters(values: dict) -> ControllerConfig:
             replan_period_s=float(values["replan_period_s"]),
             control_period_s=float(values["control_period_s"]),
             recovery_spin_rad_s=float(values["recovery_spin_rad_s"]),
+            recovery_momentum_ratio_max=float(values["recovery_momentum_ratio_max"]),
         )
     except ValueError as exc:
         raise InvalidParameterError(f"parameters (horizon/dt_s/periods/solver): {exc}") from exc

@@ -194,6 +194,26 @@ def test_recovery_asks_for_the_recovery_spin_until_the_body_has_turned(mpc, monk
     np.testing.assert_array_equal(given[-1], [0.0, 1.0, 0.0])
 
 
+def test_recovery_only_for_a_tumble_too_slow_for_the_reference(mpc) -> None:
+    """The momentum gate: |H| / I_y,max against |w_ref| (1 rad/s here)."""
+    i_y_max = mpc.limits.inertia_max_kg_m2[1]  # [kg m^2] about the reference axis y
+    paper = controller(mpc, recovery_spin_rad_s=2.0, recovery_momentum_ratio_max=1.0)
+    paper.on_state(0, W0, Q0, I0, "IN_FLIGHT")  # Table I's tumble
+    slowest = paper.slowest_spin_rad_s(W0, I0)
+    assert slowest == pytest.approx(np.linalg.norm(I0 * W0) / i_y_max)
+    assert slowest == pytest.approx(1.104, abs=1e-3)  # more momentum than 1 rad/s needs
+    assert not paper.status.recovering
+    slow_w = np.array([1.5, 0.1, 0.1])  # [rad/s] mostly about the tether: |H| = 20.0
+    slow = controller(mpc, recovery_spin_rad_s=2.0, recovery_momentum_ratio_max=1.0)
+    slow.on_state(0, slow_w, Q0, I0, "IN_FLIGHT")
+    assert slow.slowest_spin_rad_s(slow_w, I0) < 0.2
+    assert slow.status.recovering
+    # a ratio above Table I's momentum lets it recover too
+    loose = controller(mpc, recovery_spin_rad_s=2.0, recovery_momentum_ratio_max=1.2)
+    loose.on_state(0, W0, Q0, I0, "IN_FLIGHT")
+    assert loose.status.recovering
+
+
 def test_config_rejects_bad_recovery_settings() -> None:
     with pytest.raises(ValueError, match="recovery_spin_rad_s"):
         ControllerConfig(recovery_spin_rad_s=-1.0)
@@ -201,3 +221,6 @@ def test_config_rejects_bad_recovery_settings() -> None:
         ControllerConfig(recovery_enter_rate_rad_s=float("nan"))
     with pytest.raises(ValueError, match="recovery_exit_rate_rad_s must be <="):
         ControllerConfig(recovery_exit_rate_rad_s=0.1, recovery_enter_rate_rad_s=0.05)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="recovery_momentum_ratio_max"):
+            ControllerConfig(recovery_momentum_ratio_max=bad)

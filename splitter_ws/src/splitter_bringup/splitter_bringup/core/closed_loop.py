@@ -170,7 +170,13 @@ def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> Con
     )
     mpc = settings_for_weights(formulation, weights)
     return ControllerConfig(
-        enabled=c.enabled, weights=weights, mpc=mpc, recovery_spin_rad_s=c.recovery_spin_rad_s
+        enabled=c.enabled,
+        weights=weights,
+        mpc=mpc,
+        recovery_spin_rad_s=c.recovery_spin_rad_s,
+        recovery_momentum_ratio_max=(
+            math.inf if c.recovery_momentum_ratio_max is None else c.recovery_momentum_ratio_max
+        ),
     )
 
 

@@ -104,6 +104,9 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
         "integrator": c.integrator,
         "weights_step_s": 0.0 if c.weights_step_s is None else float(c.weights_step_s),
         "recovery_spin_rad_s": float(c.recovery_spin_rad_s),
+        "recovery_momentum_ratio_max": (
+            1.0e9 if c.recovery_momentum_ratio_max is None else float(c.recovery_momentum_ratio_max)
+        ),
     }
 
 

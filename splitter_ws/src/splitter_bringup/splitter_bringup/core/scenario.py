@@ -79,6 +79,8 @@ class ControllerSpec:
     # reference axis, the MPC is asked for at least this spin about it
     # (splitter_mpc.core.controller.ControllerConfig)
     recovery_spin_rad_s: float = 0.0
+    # [-] recovery only for a tumble with |H| / I_e,max < this * |w_ref| (None: any)
+    recovery_momentum_ratio_max: float | None = None
 
 
 @dataclass(frozen=True)
@@ -253,6 +255,11 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
             None if ctrl.get("weights_step_s") is None else _positive(ctrl, "weights_step_s")
         ),
         recovery_spin_rad_s=_positive(ctrl, "recovery_spin_rad_s", 0.0, zero_ok=True),
+        recovery_momentum_ratio_max=(
+            None
+            if ctrl.get("recovery_momentum_ratio_max") is None
+            else _positive(ctrl, "recovery_momentum_ratio_max")
+        ),
     )
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")

@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
 from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
+from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
 
@@ -63,6 +64,13 @@ class ControllerConfig:
     recovery_spin_rad_s: float = 0.0  # [rad/s]
     recovery_enter_rate_rad_s: float = 0.05  # [rad/s]
     recovery_exit_rate_rad_s: float = 0.005  # [rad/s]
+    # [-] recovery only for a tumble with too little momentum to exceed this multiple
+    # of the reference spin even at the largest inertia about the axis:
+    # ``|H| / I_e,max < ratio * |w_ref|``. At 1 the reference spin is reachable (a slow
+    # tumble, whose turn is slow: its rates scale with |H|); a tumble with more
+    # momentum (the paper's Table I: |H| / I_e,max = 1.10 rad/s) ends faster than the
+    # reference anyway and is left to the MPC. inf: any tumble.
+    recovery_momentum_ratio_max: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("replan_period_s", "control_period_s"):
@@ -74,6 +82,9 @@ class ControllerConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+        ratio = self.recovery_momentum_ratio_max
+        if not (isinstance(ratio, int | float) and not math.isnan(ratio) and ratio > 0.0):
+            raise ValueError(f"recovery_momentum_ratio_max must be > 0, got {ratio!r}")
         if self.recovery_exit_rate_rad_s > self.recovery_enter_rate_rad_s:
             raise ValueError(
                 "recovery_exit_rate_rad_s must be <= recovery_enter_rate_rad_s, got "
@@ -265,7 +276,7 @@ class MorphingController:
                 setpoint = self._nominal.copy()
         else:
             if self._plan is None or t_ns % self.config.replan_period_ns == 0:
-                self._update_recovery(w)
+                self._update_recovery(w, inertia)
                 status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))
             setpoint = (
                 inertia.copy()
@@ -288,7 +299,7 @@ class MorphingController:
         )
         return setpoint
 
-    def _update_recovery(self, w: NDArray[np.float64]) -> None:
+    def _update_recovery(self, w: NDArray[np.float64], inertia: NDArray[np.float64]) -> None:
         """Enter or leave recovery from the body rate across the reference axis."""
         c = self.config
         w_ref = np.asarray(self._reference.w_ref_rad_s, dtype=float)
@@ -301,9 +312,29 @@ class MorphingController:
         if self._recovering and across < c.recovery_exit_rate_rad_s:
             self._recovering = False
             _LOG.debug("recovered: %.4f rad/s across the reference axis", across)
-        elif not self._recovering and across > c.recovery_enter_rate_rad_s:
+        elif (
+            not self._recovering
+            and across > c.recovery_enter_rate_rad_s
+            and self.slowest_spin_rad_s(w, inertia) < c.recovery_momentum_ratio_max * speed
+        ):
             self._recovering = True
             _LOG.debug("recovering: %.3f rad/s across the reference axis", across)
+
+    def slowest_spin_rad_s(self, w: ArrayLike, inertia_kg_m2: ArrayLike) -> float:
+        """|H| / I_e,max [rad/s]: the slowest spin about the reference axis this momentum gives.
+
+        ``|H| = |I w|`` (principal body frame); ``I_e,max`` is the largest moment about
+        the axis the limits reach. NaN without a reference axis.
+        """
+        if self._reference is None:
+            return math.nan
+        w_ref = np.asarray(self._reference.w_ref_rad_s, dtype=float)
+        speed = float(np.linalg.norm(w_ref))
+        if speed < 1e-9:
+            return math.nan
+        momentum = float(np.linalg.norm(np.asarray(inertia_kg_m2) * np.asarray(w)))
+        _, largest = axis_inertia_range(self.mpc.limits, w_ref / speed)
+        return momentum / largest
 
     def spin_reference(self) -> NDArray[np.float64]:
         """The w_ref the MPC is given: the reference's, or its axis at the recovery spin."""
