@@ -396,14 +396,19 @@ class TetherLimbAllocator:
         """
         distance = float(drive[0] - target[0])
         i_now = principal_inertia(self.model, self._radii_from_drive(drive))
-        caps, lengths = [], []
-        for f in np.linspace(0.0, 1.0, _PATH_SAMPLES):  # 0: target, 1: now
-            point = target + f * (drive - target)
-            radii = self._radii_from_drive(point)
-            w_f = w * i_now / principal_inertia(self.model, radii)
-            margin_n = self.required_tension_n(w_f, float(radii[0]), reeling_in)
-            caps.append(2.0 * max_taut_radius_acceleration(self.model, w_f, radii[0], margin_n))
-            lengths.append(float(point[0]))
+        # every sample at once, with the scalar path's operations (same rounding)
+        fractions = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: target, 1: now
+        points = target + fractions[:, None] * (drive - target)
+        radii = np.array([self._radii_from_drive(point) for point in points])
+        w_f = w * i_now / principal_inertia(self.model, radii)
+        radius_x = radii[:, 0]
+        w_perp2 = w_f[:, 1] ** 2 + w_f[:, 2] ** 2
+        margin_n = np.full(_PATH_SAMPLES, self.config.tension_margin_n)
+        if reeling_in:  # required_tension_n, sample by sample
+            steady = self.model.hemi_mass_kg * radius_x * w_perp2
+            margin_n = np.minimum(margin_n, self.config.low_spin_tension_fraction * steady)
+        caps = (2.0 * (radius_x * w_perp2 - margin_n / self.model.hemi_mass_kg)).tolist()
+        lengths = points[:, 0].tolist()
         if distance <= 0.0:
             return caps[-1]
         reel_max = self._limits[0].acceleration_max
