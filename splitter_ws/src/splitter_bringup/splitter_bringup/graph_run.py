@@ -1,7 +1,9 @@
 """Run one scenario variant through the full node graph and read its bag back.
 
 ``splitter run SCENARIO --backend graph`` uses it: the launcher starts every
-node as its own process with the recorder, the run ends with the scenario, and
+node as its own process with the recorder (or, ``in_process``, creates them all in
+this process: :mod:`splitter_bringup.inprocess_launch`), the run ends with the
+scenario, and
 the recorded bag becomes the :class:`RunSeries` that the summary and the plots
 are made from, exactly as for a library run.
 """
@@ -57,6 +59,7 @@ def run_graph(
     verbose: bool = False,
     timeout_s: float = 1800.0,
     timing: list[WallTiming] | None = None,
+    in_process: bool = False,
 ) -> RunSeries:
     """Launch, record and read back one variant; raises :class:`GraphRunError` on failure.
 
@@ -66,15 +69,23 @@ def run_graph(
     scenario = load_scenario(scenario_name, variant)
     run_dir = out_dir / scenario.variant
     launched_unix_s = time.time()
-    result = launch(
-        scenario,
-        run_dir,
-        real_time=real_time,
-        record=True,
-        timeout_s=timeout_s,
-        quiet=not verbose,
-        on_progress=_progress_printer(f"{scenario.name}/{scenario.variant}", scenario.duration_s),
-    )
+    on_progress = _progress_printer(f"{scenario.name}/{scenario.variant}", scenario.duration_s)
+    if in_process:
+        from splitter_bringup.inprocess_launch import launch_in_process
+
+        result = launch_in_process(
+            scenario, run_dir, real_time=real_time, timeout_s=timeout_s, on_progress=on_progress
+        )
+    else:
+        result = launch(
+            scenario,
+            run_dir,
+            real_time=real_time,
+            record=True,
+            timeout_s=timeout_s,
+            quiet=not verbose,
+            on_progress=on_progress,
+        )
     if not result.ok or result.bag_dir is None:
         logs = run_dir / "logs"
         raise GraphRunError(

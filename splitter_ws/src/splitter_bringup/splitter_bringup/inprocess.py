@@ -2,8 +2,8 @@
 
 The graph-level tests use it: the very nodes and parameters the launcher starts
 as processes (``core.graph_config``), created in one rclpy context and spun by
-one ``SingleThreadedExecutor``, plus a probe node recording every message as
-serialized bytes, so that runs can be compared payload for payload.
+one executor (the project's, :mod:`splitter_msgs_py.executors`), plus a probe
+node recording every message as serialized bytes, so that runs can be compared payload for payload.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
@@ -25,7 +25,10 @@ from splitter_bringup.core.graph_config import NodeLaunch, graph_nodes
 from splitter_bringup.core.scenario import Scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg
+from splitter_msgs_py.executors import make_executor
 from splitter_msgs_py.qos import qos_for
+
+REMOVE_DRAIN_S = 0.2  # [s] executor turns between removing a node and destroying it
 
 
 @dataclass
@@ -78,12 +81,19 @@ class InProcessGraph:
     context: Context
     nodes: dict[str, Node]
     record: GraphRecord
-    executor: SingleThreadedExecutor
+    executor: Executor
 
     def remove(self, name: str) -> None:
         """Destroy one node mid-run (e.g. the MPC) and keep spinning the others."""
         node = self.nodes.pop(name)
+        for timer in node.timers:
+            timer.cancel()
         self.executor.remove_node(node)
+        # rclpy's EventsExecutor may still hold events of the node's timers and
+        # subscriptions: let it run them out before the node is destroyed under them
+        deadline = time.monotonic() + REMOVE_DRAIN_S
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
         node.destroy_node()
 
     def run_until(
@@ -117,7 +127,7 @@ def start_graph(
     if not rclpy.ok(context=context):
         raise RuntimeError("start_graph needs an initialised rclpy context")
     record = GraphRecord()
-    executor = SingleThreadedExecutor(context=context)
+    executor = make_executor(context)
     nodes: dict[str, Node] = {}
     probe = ProbeNode(record, topics, context=context)
     executor.add_node(probe)

@@ -169,7 +169,7 @@ def bench_graph_stage(rate: float, duration_s: float, bag_dir: Path) -> dict[str
     from rclpy.parameter import Parameter
 
     from splitter_msgs_py.environment import ros_environment
-    from splitter_msgs_py.recorder_node import RecorderNode, make_executor
+    from splitter_msgs_py.recorder_node import RecorderNode, recorder_executor
 
     domain_id = 150 + os.getpid() % 50
     env = ros_environment(domain_id=domain_id)
@@ -195,7 +195,7 @@ def bench_graph_stage(rate: float, duration_s: float, bag_dir: Path) -> dict[str
                 Parameter("discovery_period_s", value=0.1),
             ],
         )
-        executor = make_executor(node)
+        executor = recorder_executor(node)
         assert proc.stdout is not None and proc.stdin is not None
         lines: queue.Queue[str] = queue.Queue()
         reader = threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True)

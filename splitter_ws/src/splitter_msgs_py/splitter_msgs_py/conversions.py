@@ -48,7 +48,7 @@ def _finite_vector(value: ArrayLike, size: int, field_name: str) -> NDArray[np.f
         raise MessageValidationError(f"{field_name}: not numeric ({exc})") from exc
     if arr.size != size:
         raise MessageValidationError(f"{field_name}: expected {size} values, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise MessageValidationError(f"{field_name}: non-finite value in {arr.tolist()}")
     return arr
 

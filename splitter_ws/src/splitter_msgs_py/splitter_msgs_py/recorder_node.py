@@ -24,8 +24,7 @@ from typing import Any
 
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
-from rclpy.experimental import EventsExecutor
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -37,6 +36,7 @@ from splitter_msgs_py.bag.ros_params import declare_key_values, declare_topic_li
 from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos, type_hash_of
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
+from splitter_msgs_py.executors import make_executor
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
 from splitter_msgs_py.signals import StopRequest, drain, spin_until_stopped
 
@@ -269,12 +269,9 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
-def make_executor(node: RecorderNode) -> Executor:
-    """rclpy's EventsExecutor (about 10x the messages per second) unless message info is needed."""
-    if node.needs_message_info:
-        executor: Executor = SingleThreadedExecutor(context=node.context)
-    else:
-        executor = EventsExecutor(context=node.context)
+def recorder_executor(node: RecorderNode) -> Executor:
+    """The project's executor, but rclpy's classic one when message info is needed."""
+    executor = make_executor(node.context, "single_threaded" if node.needs_message_info else None)
     executor.add_node(node)
     return executor
 
@@ -286,7 +283,7 @@ def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | No
     node = None
     try:
         node = RecorderNode(parameter_overrides=parameter_overrides or [])
-        executor = make_executor(node)
+        executor = recorder_executor(node)
         spin_until_stopped(node, stop, executor=executor)
         if node.context.ok():
             # The launcher stops the recorder after the other nodes: take what they sent last.

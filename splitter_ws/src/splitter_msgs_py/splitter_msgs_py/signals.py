@@ -29,9 +29,11 @@ from collections.abc import Callable
 from types import FrameType
 
 from rclpy.duration import Duration
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
+
+from splitter_msgs_py.executors import make_executor
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 SPIN_PERIOD_S = 0.1  # [s] longest wait for work before the stop flag is checked again
@@ -77,11 +79,11 @@ def spin_until_stopped(
 ) -> None:
     """Execute the node's callbacks until a stop signal, ``finished()`` or a context shutdown.
 
-    ``executor`` defaults to a ``SingleThreadedExecutor`` on the node's context; the
-    node is added to it if it is not there yet.
+    ``executor`` defaults to the project's (:func:`~splitter_msgs_py.executors.make_executor`)
+    on the node's context; the node is added to it if it is not there yet.
     """
     if executor is None:
-        executor = SingleThreadedExecutor(context=node.context)
+        executor = make_executor(node.context)
     if node not in executor.get_nodes():
         executor.add_node(node)
     while node.context.ok() and not stop.requested and not (finished is not None and finished()):

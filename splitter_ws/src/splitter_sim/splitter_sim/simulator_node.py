@@ -421,6 +421,11 @@ class SimulatorNode(Node):
         )
 
     # --- parameters ------------------------------------------------------------------
+    @property
+    def time_ns(self) -> int:
+        """Simulated time of the last step [ns]."""
+        return self._sim.time_ns
+
     def _declare_gravity(self) -> float:
         """``gravity``: a preset name (zero, moon, mars, earth) or a number [m/s^2]."""
         descriptor = ParameterDescriptor(

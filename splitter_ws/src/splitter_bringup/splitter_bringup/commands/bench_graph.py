@@ -1,7 +1,8 @@
 """``splitter bench graph``: real-time factor of the lockstep node graph, per scenario.
 
-Each scenario's main variant is run twice: through the lockstep graph (every node
-its own process, recorded to a bag, as ``splitter run`` does) and through the
+Each scenario's main variant is run through the lockstep graph, recorded to a bag
+as ``splitter run`` does, in each mode (``processes``: every node its own
+process; ``in-process``: all in one process on one executor), and through the
 library loop. Printed for each: the flight's real-time factor (scenario seconds
 over the wall time of the simulator's stepping, ``flight_wall_time_s``) beside
 the goal (5x, issue 18), start-up apart (processes, solver load, discovery), and
@@ -23,6 +24,7 @@ from pathlib import Path
 
 GOAL_REAL_TIME_FACTOR = 5.0  # [-] issue 18: lockstep graph flight at >= 5x real time
 DEFAULT_SCENARIOS = ("lunar_jumping", "spin_stabilization")
+GRAPH_MODES = ("processes", "in-process")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,6 +37,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"scenario to run (repeatable; default: {', '.join(DEFAULT_SCENARIOS)})",
     )
     parser.add_argument("--variant", default="mpc", help="variant to run (default: mpc)")
+    parser.add_argument(
+        "--mode",
+        action="append",
+        choices=GRAPH_MODES,
+        default=None,
+        help=f"graph mode (repeatable; default: {', '.join(GRAPH_MODES)})",
+    )
     parser.add_argument("--out", type=Path, default=None, help="keep the runs in this folder")
 
 
@@ -65,8 +74,8 @@ def largest_relative_difference(a: dict[str, float], b: dict[str, float]) -> tup
     return worst
 
 
-def bench_scenario(name: str, variant: str, out: Path) -> dict:
-    """Figures of one scenario variant through the graph and the library."""
+def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") -> dict:
+    """Figures of one scenario variant through the graph (in ``mode``) and the library."""
     from splitter_bringup.core.closed_loop import run_closed_loop
     from splitter_bringup.core.scenario import load_scenario
     from splitter_bringup.graph_run import WallTiming, run_graph
@@ -74,7 +83,9 @@ def bench_scenario(name: str, variant: str, out: Path) -> dict:
     scenario = load_scenario(name, variant)
     timing: list[WallTiming] = []
     started = time.monotonic()
-    graph = run_graph(name, variant, out / name, timing=timing)
+    graph = run_graph(
+        name, variant, out / mode / name, timing=timing, in_process=mode == "in-process"
+    )
     graph_wall = time.monotonic() - started
     started = time.monotonic()
     library = run_closed_loop(scenario)
@@ -86,6 +97,7 @@ def bench_scenario(name: str, variant: str, out: Path) -> dict:
     return {
         "scenario": name,
         "variant": variant,
+        "mode": mode,
         "duration_s": scenario.duration_s,
         "flight_wall_time_s": flight,
         "startup_s": timing[0].startup_s,
@@ -106,15 +118,17 @@ def main(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="splitter-bench-graph-") as tmp:
         out = args.out or Path(tmp)
         for name in scenarios:
-            print(f"bench graph: {name} ...", file=sys.stderr, flush=True)
-            results.append(bench_scenario(name, args.variant, out))
+            for mode in args.mode or GRAPH_MODES:
+                print(f"bench graph: {name} ({mode}) ...", file=sys.stderr, flush=True)
+                results.append(bench_scenario(name, args.variant, out, mode))
     if args.json:
         print(json.dumps({"goal_real_time_factor": GOAL_REAL_TIME_FACTOR, "runs": results}))
         return 0
     for r in results:
         print(
-            f"{r['scenario']}/{r['variant']}: graph flight {r['flight_wall_time_s']:.1f} s "
-            f"wall for {r['duration_s']:.0f} s = {r['real_time_factor']:.1f}x real time (goal >= "
+            f"{r['scenario']}/{r['variant']} ({r['mode']}): graph flight "
+            f"{r['flight_wall_time_s']:.1f} s wall for {r['duration_s']:.0f} s = "
+            f"{r['real_time_factor']:.1f}x real time (goal >= "
             f"{GOAL_REAL_TIME_FACTOR:g}x), start-up {r['startup_s']:.1f} s; library "
             f"{r['library_real_time_factor']:.1f}x; largest metric difference "
             f"{100 * r['largest_metric_difference']:.3g} % ({r['largest_metric_difference_name']})"

@@ -1,4 +1,4 @@
-"""``splitter launch``: start every node of a scenario as its own process."""
+"""``splitter launch``: start every node of a scenario as its own process (or all in one)."""
 
 from __future__ import annotations
 
@@ -29,6 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--rate", type=float, default=1.0, help="real-time rate factor")
     parser.add_argument("--no-record", action="store_true", help="do not record a bag")
+    parser.add_argument(
+        "--in-process",
+        action="store_true",
+        help="every node in this one process on one executor (no watchdog, no Foxglove)",
+    )
     parser.add_argument(
         "--stall-timeout",
         type=float,
@@ -70,18 +75,34 @@ def main(args: argparse.Namespace) -> int:
         LOG.error("--foxglove PORT must be in [0, 65535], got %s", args.foxglove)
         return 2
     scenario = load_scenario(args.scenario, args.variant)
-    result = launch(
-        scenario,
-        args.out,
-        real_time=args.real_time,
-        rate_factor=args.rate,
-        record=not args.no_record,
-        multi_host=args.multi_host,
-        domain_id=args.domain_id,
-        stall_timeout_s=args.stall_timeout,
-        foxglove_port=args.foxglove,
-        foxglove_host=args.foxglove_host,
-    )
+    if args.in_process:
+        if args.foxglove is not None:
+            LOG.error("--foxglove needs the nodes as processes (drop --in-process)")
+            return 2
+        from splitter_bringup.inprocess_launch import launch_in_process
+
+        result = launch_in_process(
+            scenario,
+            args.out,
+            real_time=args.real_time,
+            rate_factor=args.rate,
+            record=not args.no_record,
+            multi_host=args.multi_host,
+            domain_id=args.domain_id,
+        )
+    else:
+        result = launch(
+            scenario,
+            args.out,
+            real_time=args.real_time,
+            rate_factor=args.rate,
+            record=not args.no_record,
+            multi_host=args.multi_host,
+            domain_id=args.domain_id,
+            stall_timeout_s=args.stall_timeout,
+            foxglove_port=args.foxglove,
+            foxglove_host=args.foxglove_host,
+        )
     for incident in result.incidents:
         LOG.error("during the run: %s", incident)
     for name, code in result.exit_codes.items():

@@ -46,6 +46,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-ros", action="store_true", help="same as --backend library (no ROS graph)"
     )
     parser.add_argument(
+        "--in-process",
+        action="store_true",
+        help="graph backend: every node in this one process on one executor "
+        "(default: one process per node)",
+    )
+    parser.add_argument(
         "--solver", choices=SOLVER_CHOICES, default=None, help="MPC solver (library backend)"
     )
     parser.add_argument(
@@ -77,7 +83,9 @@ def _run_variant(
         from splitter_bringup.graph_run import WallTiming, run_graph
 
         timing: list[WallTiming] = []
-        series = run_graph(scenario_name, variant, args.out, timing=timing)
+        series = run_graph(
+            scenario_name, variant, args.out, timing=timing, in_process=args.in_process
+        )
         return series, timing[0].startup_s, timing[0].flight_wall_time_s
     from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
     from splitter_model.model import RobotModel

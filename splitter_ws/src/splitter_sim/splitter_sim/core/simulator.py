@@ -229,7 +229,7 @@ class SimState:
         for f in fields(self):
             value = getattr(self, f.name)
             if isinstance(value, np.ndarray) and value.dtype != bool:
-                if not np.all(np.isfinite(value)):
+                if not np.isfinite(value).all():
                     return False
             elif isinstance(value, float) and not math.isfinite(value):
                 return False

@@ -1,0 +1,135 @@
+"""``splitter launch --in-process``: the node graph of a scenario in this one process.
+
+The same node classes and parameters as the launcher's processes
+(:func:`~splitter_bringup.core.graph_config.graph_nodes`, the recorder included),
+created in one rclpy context on the loopback-only DDS profile and spun by one
+executor (:mod:`splitter_msgs_py.executors`). They still talk over their DDS
+topics, so the bag, Foxglove and ``ros2 topic`` see the same graph; what goes away
+is one Python interpreter, one DDS participant and one UDP hop per node. The
+MPC's solver keeps its own worker process.
+
+The run ends when the simulator reaches ``duration_s``: the recorder then takes
+what is still queued and closes its bag. There is no watchdog (a stalled node
+stalls the whole process): a lockstep wait is bounded by the simulator's
+``lockstep_timeout_s``, the whole run by ``timeout_s``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+
+from splitter_bringup.core.graph_config import NodeLaunch, graph_nodes, write_parameter_file
+from splitter_bringup.core.scenario import Scenario
+from splitter_bringup.launcher import LaunchResult
+from splitter_msgs_py.environment import ros_environment
+from splitter_msgs_py.executors import make_executor
+from splitter_msgs_py.signals import StopRequest, drain, flush_publishers
+
+LOG = logging.getLogger(__name__)
+SPIN_PERIOD_S = 0.1  # [s] longest wait for work before the end and stop are checked again
+PROGRESS_PERIOD_S = 1.0  # [s] of simulated time between two progress reports
+RECORDER = "recorder"
+SIMULATOR = "simulator"
+
+
+def _node_class(node: NodeLaunch) -> type[Node]:
+    module, name = node.node_class.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _create(node: NodeLaunch, context: rclpy.context.Context) -> Node:
+    overrides = [Parameter(k, value=v) for k, v in node.parameters.items()]
+    return _node_class(node)(context=context, parameter_overrides=overrides)
+
+
+def launch_in_process(
+    scenario: Scenario,
+    out_dir: Path,
+    *,
+    real_time: bool = False,
+    rate_factor: float = 1.0,
+    record: bool = True,
+    multi_host: bool = False,
+    domain_id: int | None = None,
+    timeout_s: float | None = None,
+    on_progress: Callable[[float], None] | None = None,
+) -> LaunchResult:
+    """Run ``scenario`` through its node graph in this process; records ``out_dir/bag``.
+
+    The parameters each node got are written to ``out_dir/params`` as for a
+    launch with processes. The DDS environment (loopback-only unless
+    ``multi_host``) is set in this process before its rclpy context starts.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bag_dir = out_dir / "bag" if record else None
+    os.environ.update(ros_environment(domain_id=domain_id, multi_host=multi_host))
+    nodes = graph_nodes(scenario, real_time=real_time, rate_factor=rate_factor, bag_dir=bag_dir)
+    for node in nodes:
+        write_parameter_file(node, out_dir / "params")
+    stop = StopRequest()
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    created: dict[str, Node] = {}
+    outcome = "ended"
+    try:
+        executor = make_executor(context)
+        for node in nodes:  # the recorder first, the simulator last
+            created[node.name] = _create(node, context)
+            executor.add_node(created[node.name])
+        simulator = created[SIMULATOR]
+        outcome = _spin(executor, simulator, stop, timeout_s, on_progress)
+        # the simulator stops stepping; the controllers answer its last state and the
+        # recorder takes what is still queued for it
+        for timer in simulator.timers:
+            timer.cancel()
+        executor.remove_node(simulator)
+        recorder = created.get(RECORDER)
+        if recorder is not None and context.ok():
+            late = drain(executor, lambda: sum(recorder.message_counts.values()))
+            LOG.info("recorder: drained %d messages still queued at the end", late)
+        for node in created.values():
+            if node.context.ok():
+                flush_publishers(node)
+    finally:
+        for name in reversed(list(created)):  # the simulator first, the recorder last
+            created[name].destroy_node()
+        context.try_shutdown()
+    codes: dict[str, int | None] = {name: 0 for name in created}
+    return LaunchResult(outcome, codes, bag_dir)
+
+
+def _spin(
+    executor,
+    simulator,
+    stop: StopRequest,
+    timeout_s: float | None,
+    on_progress: Callable[[float], None] | None,
+) -> str:
+    """Execute callbacks until the simulator finishes ("ended"), a stop or the timeout."""
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    next_report_ns = 0
+    while not simulator.finished.done():
+        if stop.requested:
+            LOG.info("%s: stopping the graph", stop.signal_name)
+            return "stopped"
+        if deadline is not None and time.monotonic() > deadline:
+            LOG.error("the run did not end within %.0f s: stopping the graph", timeout_s)
+            return "timeout"
+        executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+        t_ns = simulator.time_ns
+        if on_progress is not None and t_ns >= next_report_ns:
+            on_progress(t_ns * 1e-9)
+            next_report_ns = t_ns + round(PROGRESS_PERIOD_S * 1e9)
+    if on_progress is not None:
+        on_progress(simulator.time_ns * 1e-9)
+    return "ended"
