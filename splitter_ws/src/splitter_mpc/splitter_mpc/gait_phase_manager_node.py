@@ -480,8 +480,7 @@ class GaitPhaseManagerNode(Node):
         except MessageValidationError as exc:
             self.get_logger().error(f"tick {t_ns * 1e-9:.3f} s: jump command refused ({exc}); zero")
             jump = wrench_to_msg(t_ns, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), names.WORLD_FRAME)
-        self._jump_pub.publish(jump)
-        if output is not None:
+        if output is not None:  # the tick's phase and reference go out before its answer
             self._last_output = output
             if output.phase_changed:
                 self.get_logger().info(
@@ -491,6 +490,7 @@ class GaitPhaseManagerNode(Node):
                 self._phase_pub.publish(String(data=output.phase.value))
             if output.reference is not None:
                 self._publish_reference(output)
+        self._jump_pub.publish(jump)
         if t_ns % self._diagnostics_period_ns == 0:
             self._publish_diagnostics(t_ns)
 

@@ -11,6 +11,12 @@ manager on its first tick), and for the gait phase when a node publishes one, so
 that the first plan does not depend on message order (a first tick answered before
 the phase arrived would plan where LAUNCH holds the nominal shape).
 ``/splitter/gait_phase`` (latched) switches it off in LANDED.
+When a gait phase manager is in the graph (it publishes
+``/splitter/jump_command``), each tick ``t`` is answered only after the manager's
+jump command stamped ``t``: the manager publishes a phase or reference change of
+tick ``t`` before that command, so tick ``t`` plans with the phase and reference
+of tick ``t`` whatever the message timing, in the library loop's order (gait,
+then MPC). Before, a phase change could reach the MPC one tick late in some runs.
 ``/diagnostics`` every 100 ms of simulated time: solve time, iterations,
 status, cost. Bad messages are rejected with a throttled warning; the node keeps
 its last good data.
@@ -23,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
@@ -42,6 +48,7 @@ from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     MessageValidationError,
     StampGate,
+    checked_stamp_from_msg,
     diagnostics_to_msg,
     imu_from_msg,
     pose_from_msg,
@@ -234,6 +241,7 @@ class InertialMorphingMpcNode(Node):
         self._reference_stamp: int | None = None
         self._phase: str | None = None
         self._waiting_tick: int | None = None
+        self._gait_answered: int | None = None  # stamp of the last jump command [ns]
         self._last_answered: int | None = None
         self._stamps = StampGate()  # no stamp backwards per topic, none far ahead
         self.published = 0
@@ -255,6 +263,9 @@ class InertialMorphingMpcNode(Node):
             PoseStamped, names.ATTITUDE_REFERENCE_POSE, self._on_q_ref, LATCHED_QOS
         )
         self.create_subscription(String, names.GAIT_PHASE, self._on_phase, LATCHED_QOS)
+        self.create_subscription(
+            WrenchStamped, names.JUMP_COMMAND, self._on_gait_answer, qos_for(names.JUMP_COMMAND)
+        )
         self.get_logger().info("ready")
 
     def destroy_node(self) -> None:
@@ -348,6 +359,26 @@ class InertialMorphingMpcNode(Node):
             tick, self._waiting_tick = self._waiting_tick, None
             self._try_tick(tick)
 
+    def _on_gait_answer(self, msg: WrenchStamped) -> None:
+        """The gait manager answered the tick of this stamp (its contents are not used)."""
+        try:
+            t_ns = checked_stamp_from_msg(msg.header.stamp)
+            self._stamps.check(names.JUMP_COMMAND, t_ns, self._clock_ns())
+        except MessageValidationError as exc:
+            self._reject(names.JUMP_COMMAND, exc)
+            return
+        self._stamps.accept(names.JUMP_COMMAND, t_ns)
+        self._gait_answered = t_ns
+        if self._waiting_tick is not None and self._waiting_tick <= t_ns:
+            tick, self._waiting_tick = self._waiting_tick, None
+            self._try_tick(tick)
+
+    def _waits_for_gait(self, t_ns: int) -> bool:
+        """True while a gait manager is in the graph and has not answered tick ``t_ns``."""
+        if self._gait_answered is not None and self._gait_answered >= t_ns:
+            return False
+        return self.count_publishers(names.JUMP_COMMAND) > 0
+
     def _update_reference(self) -> None:
         if self._w_ref is None or self._q_ref is None:
             return
@@ -372,8 +403,10 @@ class InertialMorphingMpcNode(Node):
         if self.controller.config.enabled and (
             self.controller.reference is None
             or (self._phase is None and self.count_publishers(names.GAIT_PHASE) > 0)
+            or self._waits_for_gait(t_ns)
         ):
-            self._waiting_tick = t_ns  # answered when the first reference and phase arrive
+            # answered when the first reference and phase and the gait's answer arrive
+            self._waiting_tick = t_ns
             return
         imu = self._imu[t_ns]
         inertia = self._inertia[t_ns]

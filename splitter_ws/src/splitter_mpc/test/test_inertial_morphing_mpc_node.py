@@ -12,7 +12,7 @@ import pytest
 import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
@@ -29,6 +29,7 @@ from splitter_msgs_py.conversions import (
     twist_to_msg,
     vector3_from_msg,
     vector3_to_msg,
+    wrench_to_msg,
 )
 from splitter_msgs_py.parameters import InvalidParameterError, rejection_counts
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
@@ -173,6 +174,33 @@ def test_the_first_tick_waits_for_the_gait_phase(graph) -> None:
     spin_for(executor, 0.3)
     assert fake.stamps() == [0] and mpc.controller.status.phase == "LAUNCH"
     np.testing.assert_allclose(vector3_from_msg(fake.setpoints[0]).vector, 1.01 * I0)
+
+
+def test_a_tick_waits_for_the_gait_managers_answer_and_plans_with_its_phase(graph) -> None:
+    """With a gait manager in the graph, tick t is answered after its jump command stamped
+    t, with the phase it published before: a LANDED at t = 10 ms counts at t = 10 ms
+    (LANDED holds the last setpoint, where IN_FLIGHT plays the plan on)."""
+    mpc, fake, executor = graph
+    jump = fake.node.create_publisher(
+        WrenchStamped, names.JUMP_COMMAND, qos_for(names.JUMP_COMMAND)
+    )
+    fake.publish_reference(0)
+    fake.phase.publish(String(data="IN_FLIGHT"))
+    fake.publish_state(0)
+    spin_for(executor, 0.3)
+    assert fake.stamps() == []  # the gait manager has not answered t = 0
+    jump.publish(wrench_to_msg(0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), names.WORLD_FRAME))
+    spin_until(executor, lambda: fake.stamps() == [0])
+    fake.publish_state(10 * MS, inertia=1.05 * I0)
+    spin_for(executor, 0.3)
+    assert fake.stamps() == [0]
+    fake.phase.publish(String(data="LANDED"))  # the gait's tick 10 ms: phase, then answer
+    jump.publish(wrench_to_msg(10 * MS, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), names.WORLD_FRAME))
+    spin_until(executor, lambda: fake.stamps() == [0, 10])
+    assert mpc.controller.status.phase == "LANDED"
+    # LANDED holds the last setpoint; IN_FLIGHT would have played the plan on
+    held, first = (vector3_from_msg(m).vector for m in (fake.setpoints[1], fake.setpoints[0]))
+    np.testing.assert_array_equal(held, first)
 
 
 def test_landed_holds_the_nominal_inertia(graph) -> None:
