@@ -75,30 +75,25 @@ def main(args: argparse.Namespace) -> int:
         LOG.error("--foxglove PORT must be in [0, 65535], got %s", args.foxglove)
         return 2
     scenario = load_scenario(args.scenario, args.variant)
+    common = {
+        "real_time": args.real_time,
+        "rate_factor": args.rate,
+        "record": not args.no_record,
+        "multi_host": args.multi_host,
+        "domain_id": args.domain_id,
+    }
     if args.in_process:
         if args.foxglove is not None:
             LOG.error("--foxglove needs the nodes as processes (drop --in-process)")
             return 2
         from splitter_bringup.inprocess_launch import launch_in_process
 
-        result = launch_in_process(
-            scenario,
-            args.out,
-            real_time=args.real_time,
-            rate_factor=args.rate,
-            record=not args.no_record,
-            multi_host=args.multi_host,
-            domain_id=args.domain_id,
-        )
+        result = launch_in_process(scenario, args.out, **common)
     else:
         result = launch(
             scenario,
             args.out,
-            real_time=args.real_time,
-            rate_factor=args.rate,
-            record=not args.no_record,
-            multi_host=args.multi_host,
-            domain_id=args.domain_id,
+            **common,
             stall_timeout_s=args.stall_timeout,
             foxglove_port=args.foxglove,
             foxglove_host=args.foxglove_host,
