@@ -25,3 +25,4 @@ def test_short_benchmark_reports_agreeing_closed_loops_and_plots(tmp_path) -> No
         assert math.isfinite(result[key]) and result[key] > 0.0
     assert result["median_ms"] <= result["p99_ms"] <= result["max_ms"]
     assert plot.stat().st_size > 10_000
+    assert (result["goal_p99_ms"], result["goal_speedup_median"]) == (3.0, 100.0)  # issue 18
