@@ -3,7 +3,9 @@
 The graph-level tests use it: the very nodes and parameters the launcher starts
 as processes (``core.graph_config``), created in one rclpy context and spun by
 one executor (the project's, :mod:`splitter_msgs_py.executors`), plus a probe
-node recording every message as serialized bytes, so that runs can be compared payload for payload.
+node recording every message as serialized bytes, so that runs can be compared
+payload for payload. :func:`create_node` is also how ``splitter launch
+--in-process`` (:mod:`splitter_bringup.inprocess_launch`) builds its nodes.
 """
 
 from __future__ import annotations
@@ -65,13 +67,12 @@ class ProbeNode(Node):
         ]
 
 
-def _import(path: str) -> type:
-    module, name = path.split(":")
-    return getattr(importlib.import_module(module), name)
-
-
-def _overrides(launch: NodeLaunch) -> list[Parameter]:
-    return [Parameter(k, value=v) for k, v in launch.parameters.items()]
+def create_node(launch: NodeLaunch, context: Context) -> Node:
+    """The node of ``launch`` (its class and parameters) in ``context``."""
+    module, name = launch.node_class.split(":")
+    node_class = getattr(importlib.import_module(module), name)
+    overrides = [Parameter(k, value=v) for k, v in launch.parameters.items()]
+    return node_class(context=context, parameter_overrides=overrides)
 
 
 @dataclass
@@ -133,7 +134,7 @@ def start_graph(
     executor.add_node(probe)
     nodes["graph_probe"] = probe
     for launch in graph_nodes(scenario):
-        node = _import(launch.node_class)(context=context, parameter_overrides=_overrides(launch))
+        node = create_node(launch, context)
         executor.add_node(node)
         nodes[launch.name] = node
     return InProcessGraph(context, nodes, record, executor)

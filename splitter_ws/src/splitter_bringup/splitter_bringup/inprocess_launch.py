@@ -16,7 +16,6 @@ stalls the whole process): a lockstep wait is bounded by the simulator's
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import time
@@ -24,32 +23,24 @@ from collections.abc import Callable
 from pathlib import Path
 
 import rclpy
+from rclpy.executors import Executor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
-from splitter_bringup.core.graph_config import NodeLaunch, graph_nodes, write_parameter_file
+from splitter_bringup.core.graph_config import graph_nodes, write_parameter_file
 from splitter_bringup.core.scenario import Scenario
+from splitter_bringup.inprocess import create_node
 from splitter_bringup.launcher import LaunchResult
 from splitter_msgs_py.environment import ros_environment
 from splitter_msgs_py.executors import make_executor
 from splitter_msgs_py.signals import StopRequest, drain, flush_publishers
+from splitter_sim.simulator_node import SimulatorNode
 
 LOG = logging.getLogger(__name__)
 SPIN_PERIOD_S = 0.1  # [s] longest wait for work before the end and stop are checked again
 PROGRESS_PERIOD_S = 1.0  # [s] of simulated time between two progress reports
 RECORDER = "recorder"
 SIMULATOR = "simulator"
-
-
-def _node_class(node: NodeLaunch) -> type[Node]:
-    module, name = node.node_class.split(":")
-    return getattr(importlib.import_module(module), name)
-
-
-def _create(node: NodeLaunch, context: rclpy.context.Context) -> Node:
-    overrides = [Parameter(k, value=v) for k, v in node.parameters.items()]
-    return _node_class(node)(context=context, parameter_overrides=overrides)
 
 
 def launch_in_process(
@@ -84,7 +75,7 @@ def launch_in_process(
     try:
         executor = make_executor(context)
         for node in nodes:  # the recorder first, the simulator last
-            created[node.name] = _create(node, context)
+            created[node.name] = create_node(node, context)
             executor.add_node(created[node.name])
         simulator = created[SIMULATOR]
         outcome = _spin(executor, simulator, stop, timeout_s, on_progress)
@@ -109,8 +100,8 @@ def launch_in_process(
 
 
 def _spin(
-    executor,
-    simulator,
+    executor: Executor,
+    simulator: SimulatorNode,
     stop: StopRequest,
     timeout_s: float | None,
     on_progress: Callable[[float], None] | None,
