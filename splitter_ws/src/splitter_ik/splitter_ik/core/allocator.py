@@ -63,6 +63,8 @@ TETHER_JOINT_INDEX = 24
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
 KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
 _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
+_PATH_FRACTIONS = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: the target, 1: the tether now
+_PATH_FRACTIONS.flags.writeable = False
 _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
 
 
@@ -397,9 +399,12 @@ class TetherLimbAllocator:
         distance = float(drive[0] - target[0])
         i_now = principal_inertia(self.model, self._radii_from_drive(drive))
         # every sample at once, with the scalar path's operations (same rounding)
-        fractions = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: target, 1: now
-        points = target + fractions[:, None] * (drive - target)
-        radii = np.array([self._radii_from_drive(point) for point in points])
+        points = target + _PATH_FRACTIONS[:, None] * (drive - target)
+        reach = self.model.limb_reach_m
+        radii = np.empty((_PATH_SAMPLES, 3))
+        radii[:, 0] = points[:, 0] / 2.0
+        radii[:, 1] = [reach(knee) for knee in points[:, 1].tolist()]
+        radii[:, 2] = [reach(knee) for knee in points[:, 2].tolist()]
         w_f = w * i_now / principal_inertia(self.model, radii)
         radius_x = radii[:, 0]
         w_perp2 = w_f[:, 1] ** 2 + w_f[:, 2] ** 2

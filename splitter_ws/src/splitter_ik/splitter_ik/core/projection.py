@@ -23,6 +23,7 @@ candidates that overflow are skipped; the 8 vertices are always candidates.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -51,8 +52,18 @@ class ProjectionResult:
 
 
 def inertia_map(model: RobotModel) -> NDArray[np.float64]:
-    """The matrix A [kg] with ``principal_inertia(r) = A @ r**2`` (columns from the model)."""
-    return np.stack([principal_inertia(model, e) for e in np.eye(3)], axis=1)
+    """The matrix A [kg] with ``principal_inertia(r) = A @ r**2`` (columns from the model).
+
+    Read-only; computed once per model (every allocation projects its setpoint).
+    """
+    return _inertia_map(model)
+
+
+@functools.lru_cache(maxsize=16)
+def _inertia_map(model: RobotModel) -> NDArray[np.float64]:
+    a = np.stack([principal_inertia(model, e) for e in np.eye(3)], axis=1)
+    a.flags.writeable = False
+    return a
 
 
 def reachable_inertia_bounds(model: RobotModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
