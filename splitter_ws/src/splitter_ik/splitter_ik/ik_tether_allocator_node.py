@@ -297,7 +297,7 @@ class IkTetherAllocatorNode(Node):
         """
         try:
             t_ns = checked_stamp_from_msg(msg.header.stamp)
-            self._stamps.check(topic, t_ns, self._clock_ns())
+            self._stamps.check(topic, t_ns, self._clock_ns)
             last = self._last_answered_t
             if answers_a_tick and last is not None and t_ns < last:
                 raise MessageValidationError(

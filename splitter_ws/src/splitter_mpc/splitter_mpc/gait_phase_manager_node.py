@@ -328,7 +328,7 @@ class GaitPhaseManagerNode(Node):
         """The message's stamp [ns] if it may be used, else None (warned and counted)."""
         try:
             t_ns = checked_stamp_from_msg(msg.header.stamp)
-            self._stamps.check(topic, t_ns, self._clock_ns())
+            self._stamps.check(topic, t_ns, self._clock_ns)
         except MessageValidationError as exc:
             warn_throttled(
                 self, topic, f"rejected {topic}: {exc}; dropped, keeping the last good message"
@@ -339,7 +339,7 @@ class GaitPhaseManagerNode(Node):
 
     @staticmethod
     def _check_bound(field_name: str, values, limit: float, unit: str) -> None:
-        if np.any(np.abs(values) > limit):
+        if max(abs(v) for v in np.asarray(values, dtype=float).reshape(-1).tolist()) > limit:
             raise MessageValidationError(
                 f"{field_name}: {np.asarray(values).tolist()} beyond +-{limit:g} {unit}"
             )

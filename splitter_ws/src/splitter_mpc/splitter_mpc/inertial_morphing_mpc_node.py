@@ -63,6 +63,7 @@ from splitter_msgs_py.parameters import (
     rejection_counts,
     warn_throttled,
 )
+from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
@@ -244,6 +245,7 @@ class InertialMorphingMpcNode(Node):
         self._gait_answered: int | None = None  # stamp of the last jump command [ns]
         self._last_answered: int | None = None
         self._stamps = StampGate()  # no stamp backwards per topic, none far ahead
+        self._has_publisher = PublisherPresence(self)
         self.published = 0
 
         self._setpoint_pub = self.create_publisher(
@@ -286,7 +288,7 @@ class InertialMorphingMpcNode(Node):
 
     def _checked_stamp(self, topic: str, t_ns: int) -> int:
         """``t_ns`` if in order on ``topic``, not before the last answered tick, not far ahead."""
-        self._stamps.check(topic, t_ns, self._clock_ns())
+        self._stamps.check(topic, t_ns, self._clock_ns)
         if self._last_answered is not None and t_ns < self._last_answered:
             raise MessageValidationError(
                 f"header.stamp {t_ns * 1e-9:.3f} s: before the tick already answered "
@@ -330,7 +332,7 @@ class InertialMorphingMpcNode(Node):
             w_ref = twist_from_msg(msg)
             if np.max(np.abs(w_ref[1])) > MAX_RATE_RAD_S:
                 raise MessageValidationError("twist.angular: above the rate limit")
-            self._stamps.check(names.ATTITUDE_REFERENCE, w_ref[0], self._clock_ns())
+            self._stamps.check(names.ATTITUDE_REFERENCE, w_ref[0], self._clock_ns)
         except MessageValidationError as exc:
             self._reject(names.ATTITUDE_REFERENCE, exc)
             return
@@ -342,7 +344,7 @@ class InertialMorphingMpcNode(Node):
         try:
             _check_frame(msg.header.frame_id, names.WORLD_FRAME)
             t_ns, q, _ = pose_from_msg(msg)
-            self._stamps.check(names.ATTITUDE_REFERENCE_POSE, t_ns, self._clock_ns())
+            self._stamps.check(names.ATTITUDE_REFERENCE_POSE, t_ns, self._clock_ns)
         except MessageValidationError as exc:
             self._reject(names.ATTITUDE_REFERENCE_POSE, exc)
             return
@@ -363,7 +365,7 @@ class InertialMorphingMpcNode(Node):
         """The gait manager answered the tick of this stamp (its contents are not used)."""
         try:
             t_ns = checked_stamp_from_msg(msg.header.stamp)
-            self._stamps.check(names.JUMP_COMMAND, t_ns, self._clock_ns())
+            self._stamps.check(names.JUMP_COMMAND, t_ns, self._clock_ns)
         except MessageValidationError as exc:
             self._reject(names.JUMP_COMMAND, exc)
             return
@@ -377,7 +379,7 @@ class InertialMorphingMpcNode(Node):
         """True while a gait manager is in the graph and has not answered tick ``t_ns``."""
         if self._gait_answered is not None and self._gait_answered >= t_ns:
             return False
-        return self.count_publishers(names.JUMP_COMMAND) > 0
+        return self._has_publisher(names.JUMP_COMMAND)
 
     def _update_reference(self) -> None:
         if self._w_ref is None or self._q_ref is None:
@@ -402,7 +404,7 @@ class InertialMorphingMpcNode(Node):
             return
         if self.controller.config.enabled and (
             self.controller.reference is None
-            or (self._phase is None and self.count_publishers(names.GAIT_PHASE) > 0)
+            or (self._phase is None and self._has_publisher(names.GAIT_PHASE))
             or self._waits_for_gait(t_ns)
         ):
             # answered when the first reference and phase and the gait's answer arrive

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import importlib
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,12 +56,12 @@ def _finite_vector(value: ArrayLike, size: int, field_name: str) -> NDArray[np.f
 def unit_quaternion(q_wxyz: ArrayLike, field_name: str = "orientation") -> NDArray[np.float64]:
     """Validated unit quaternion: normalized within tolerance, rejected beyond it."""
     q = _finite_vector(q_wxyz, 4, field_name)
-    largest = float(np.max(np.abs(q)))
+    largest = max(abs(c) for c in q.tolist())
     if largest > 1.0 + QUATERNION_NORM_TOLERANCE:  # (its norm could overflow)
         raise MessageValidationError(
             f"{field_name}: quaternion norm is not 1 (a component is {largest:.6g})"
         )
-    norm = float(np.linalg.norm(q))
+    norm = math.sqrt(q.dot(q))  # what np.linalg.norm computes for a vector
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise MessageValidationError(f"{field_name}: quaternion norm {norm:.6g} is not 1")
     return q / norm
@@ -72,24 +72,24 @@ def _xyzw_to_wxyz(q) -> NDArray[np.float64]:
 
 
 def _set_quaternion(target, q_wxyz: NDArray[np.float64]) -> None:
-    target.w, target.x, target.y, target.z = (float(v) for v in q_wxyz)
+    target.w, target.x, target.y, target.z = q_wxyz.tolist()
 
 
 def _set_vector3(target, v: NDArray[np.float64]) -> None:
-    target.x, target.y, target.z = (float(c) for c in v)
+    target.x, target.y, target.z = v.tolist()
 
 
-def _vector3(v) -> NDArray[np.float64]:
-    return np.array([v.x, v.y, v.z], dtype=float)
-
-
-def _point(v) -> NDArray[np.float64]:
-    return np.array([v.x, v.y, v.z], dtype=float)
+def _finite_xyz(v, field_name: str) -> NDArray[np.float64]:
+    """(x, y, z) of a message's Vector3 or Point, each finite."""
+    x, y, z = v.x, v.y, v.z
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise MessageValidationError(f"{field_name}: non-finite value in {[x, y, z]}")
+    return np.array([x, y, z])
 
 
 def quaternion_to_matrix(q_wxyz: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix (world <- base) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = (float(c) for c in np.asarray(q_wxyz, dtype=float))
+    w, x, y, z = np.asarray(q_wxyz, dtype=float).tolist()
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -150,18 +150,29 @@ class StampGate:
             raise ValueError(f"max_lead_ns must be >= 0, got {max_lead_ns}")
         self.max_lead_ns = int(max_lead_ns)
         self._last: dict[str, int] = {}
+        self._latest: int | None = None
 
     @property
     def latest_ns(self) -> int | None:
         """The newest stamp accepted on any topic [ns], None before any."""
-        return max(self._last.values(), default=None)
+        return self._latest
 
     def last_ns(self, topic: str) -> int | None:
         """The last stamp accepted on ``topic`` [ns], None before any."""
         return self._last.get(topic)
 
-    def check(self, topic: str, t_ns: int, clock_ns: int | None = None) -> int:
-        """``t_ns`` when it may be accepted on ``topic``; ``MessageValidationError`` if not."""
+    def check(
+        self,
+        topic: str,
+        t_ns: int,
+        clock_ns: int | Callable[[], int | None] | None = None,
+    ) -> int:
+        """``t_ns`` when it may be accepted on ``topic``; ``MessageValidationError`` if not.
+
+        ``clock_ns`` may be a function returning it: it is then called only when the
+        newest accepted stamp alone would not admit ``t_ns`` (reading a node's clock
+        costs more than the rest of the check).
+        """
         t_ns = int(t_ns)
         if t_ns < 0:
             raise MessageValidationError(f"header.stamp: negative time {t_ns} ns")
@@ -171,7 +182,12 @@ class StampGate:
                 f"header.stamp: {t_ns * 1e-9:.9f} s is earlier than the last accepted "
                 f"{last * 1e-9:.9f} s (out of order, or time restarted)"
             )
-        references = [v for v in (clock_ns, self.latest_ns) if v is not None]
+        latest = self._latest
+        if latest is not None and t_ns <= latest + self.max_lead_ns:
+            return t_ns  # within the lead of the newest stamp: the clock cannot refuse it
+        if callable(clock_ns):
+            clock_ns = clock_ns()
+        references = [v for v in (clock_ns, latest) if v is not None]
         if references:
             now = max(references)
             if t_ns > now + self.max_lead_ns:
@@ -183,7 +199,9 @@ class StampGate:
 
     def accept(self, topic: str, t_ns: int) -> None:
         """Record ``t_ns`` (checked) as the last stamp of ``topic``."""
-        self._last[topic] = max(int(t_ns), self._last.get(topic, 0))
+        t_ns = max(int(t_ns), self._last.get(topic, 0))
+        self._last[topic] = t_ns
+        self._latest = t_ns if self._latest is None else max(self._latest, t_ns)
 
 
 def clock_to_msg(t_ns: int) -> Clock:
@@ -229,12 +247,8 @@ def imu_from_msg(msg: Imu) -> ImuSample:
     return ImuSample(
         t_ns=stamp_from_msg(msg.header.stamp),
         orientation_wxyz=unit_quaternion(_xyzw_to_wxyz(msg.orientation)),
-        angular_velocity_rad_s=_finite_vector(
-            _vector3(msg.angular_velocity), 3, "angular_velocity"
-        ),
-        linear_acceleration_m_s2=_finite_vector(
-            _vector3(msg.linear_acceleration), 3, "linear_acceleration"
-        ),
+        angular_velocity_rad_s=_finite_xyz(msg.angular_velocity, "angular_velocity"),
+        linear_acceleration_m_s2=_finite_xyz(msg.linear_acceleration, "linear_acceleration"),
     )
 
 
@@ -278,17 +292,15 @@ def odom_to_msg(
 def odom_from_msg(msg: Odometry) -> OdomSample:
     """Validated :class:`OdomSample`; the base-frame linear twist is rotated to world."""
     q = unit_quaternion(_xyzw_to_wxyz(msg.pose.pose.orientation), "pose.orientation")
-    v_base = _finite_vector(_vector3(msg.twist.twist.linear), 3, "twist.linear")
+    v_base = _finite_xyz(msg.twist.twist.linear, "twist.linear")
     with np.errstate(over="ignore", invalid="ignore"):  # checked just below
         v_world = _finite_vector(quaternion_to_matrix(q) @ v_base, 3, "twist.linear (world)")
     return OdomSample(
         t_ns=stamp_from_msg(msg.header.stamp),
-        position_m=_finite_vector(_point(msg.pose.pose.position), 3, "pose.position"),
+        position_m=_finite_xyz(msg.pose.pose.position, "pose.position"),
         orientation_wxyz=q,
         velocity_world_m_s=v_world,
-        angular_velocity_rad_s=_finite_vector(
-            _vector3(msg.twist.twist.angular), 3, "twist.angular"
-        ),
+        angular_velocity_rad_s=_finite_xyz(msg.twist.twist.angular, "twist.angular"),
     )
 
 
@@ -315,7 +327,7 @@ def vector3_from_msg(msg: Vector3Stamped) -> Vector3Sample:
     """Validated :class:`Vector3Sample`."""
     return Vector3Sample(
         t_ns=stamp_from_msg(msg.header.stamp),
-        vector=_finite_vector(_vector3(msg.vector), 3, "vector"),
+        vector=_finite_xyz(msg.vector, "vector"),
         frame_id=msg.header.frame_id,
     )
 
@@ -330,7 +342,10 @@ def principal_inertia_from_msg(msg: Vector3Stamped) -> Vector3Sample:
         raise MessageValidationError(
             f"header.frame_id: expected '{names.BASE_FRAME}', got {sample.frame_id!r}"
         )
-    if np.any(sample.vector <= 0.0) or np.any(sample.vector > MAX_PRINCIPAL_INERTIA_KG_M2):
+    if (
+        min(sample.vector.tolist()) <= 0.0
+        or max(sample.vector.tolist()) > MAX_PRINCIPAL_INERTIA_KG_M2
+    ):
         raise MessageValidationError(
             f"vector: moments must be in (0, {MAX_PRINCIPAL_INERTIA_KG_M2:g}] kg m^2, "
             f"got {sample.vector.tolist()}"
@@ -367,6 +382,9 @@ def joint_state_to_msg(
     return msg
 
 
+_JOINT_NAME_LIST = list(names.JOINT_NAMES)
+
+
 def joint_state_from_msg(msg: JointState) -> JointSample:
     """Validated :class:`JointSample` reordered to ``names.JOINT_NAMES``.
 
@@ -374,15 +392,17 @@ def joint_state_from_msg(msg: JointState) -> JointSample:
     optional (empty) but, when present, must match the names in length.
     """
     msg_names = list(msg.name)
-    unknown = sorted(set(msg_names) - set(names.JOINT_NAMES))
-    if unknown:
-        raise MessageValidationError(f"name: unknown joints {unknown}")
-    if len(set(msg_names)) != len(msg_names):
-        raise MessageValidationError("name: duplicate joint names")
-    missing = [n for n in names.JOINT_NAMES if n not in msg_names]
-    if missing:
-        raise MessageValidationError(f"name: missing joints {missing}")
-    order = np.array([msg_names.index(n) for n in names.JOINT_NAMES])
+    order: NDArray[np.intp] | None = None  # None: already in JOINT_NAMES order
+    if msg_names != _JOINT_NAME_LIST:
+        unknown = sorted(set(msg_names) - set(names.JOINT_NAMES))
+        if unknown:
+            raise MessageValidationError(f"name: unknown joints {unknown}")
+        if len(set(msg_names)) != len(msg_names):
+            raise MessageValidationError("name: duplicate joint names")
+        missing = [n for n in names.JOINT_NAMES if n not in msg_names]
+        if missing:
+            raise MessageValidationError(f"name: missing joints {missing}")
+        order = np.array([msg_names.index(n) for n in names.JOINT_NAMES])
 
     def field_array(values: Sequence[float], field_name: str) -> NDArray[np.float64] | None:
         if len(values) == 0:
@@ -391,7 +411,8 @@ def joint_state_from_msg(msg: JointState) -> JointSample:
             raise MessageValidationError(
                 f"{field_name}: {len(values)} values for {len(msg_names)} names"
             )
-        return _finite_vector(values, len(msg_names), field_name)[order]
+        checked = _finite_vector(values, len(msg_names), field_name)
+        return checked.copy() if order is None else checked[order]  # not the message's buffer
 
     position = field_array(msg.position, "position")
     if position is None:
@@ -434,8 +455,8 @@ def wrench_from_msg(msg: WrenchStamped) -> WrenchSample:
     """Validated :class:`WrenchSample`."""
     return WrenchSample(
         t_ns=stamp_from_msg(msg.header.stamp),
-        force_n=_finite_vector(_vector3(msg.wrench.force), 3, "wrench.force"),
-        torque_nm=_finite_vector(_vector3(msg.wrench.torque), 3, "wrench.torque"),
+        force_n=_finite_xyz(msg.wrench.force, "wrench.force"),
+        torque_nm=_finite_xyz(msg.wrench.torque, "wrench.torque"),
         frame_id=msg.header.frame_id,
     )
 
@@ -456,7 +477,7 @@ def twist_from_msg(msg: TwistStamped) -> tuple[int, NDArray[np.float64]]:
     """(t_ns, angular velocity [rad/s]) of a TwistStamped."""
     return (
         stamp_from_msg(msg.header.stamp),
-        _finite_vector(_vector3(msg.twist.angular), 3, "twist.angular"),
+        _finite_xyz(msg.twist.angular, "twist.angular"),
     )
 
 
@@ -480,7 +501,7 @@ def pose_from_msg(msg: PoseStamped) -> tuple[int, NDArray[np.float64], NDArray[n
     return (
         stamp_from_msg(msg.header.stamp),
         unit_quaternion(_xyzw_to_wxyz(msg.pose.orientation), "pose.orientation"),
-        _finite_vector(_point(msg.pose.position), 3, "pose.position"),
+        _finite_xyz(msg.pose.position, "pose.position"),
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -180,6 +181,30 @@ def test_stamp_gate_per_topic_order_and_lead() -> None:
     assert gate.latest_ns == 10_000
     with pytest.raises(ValueError):
         conv.StampGate(-1)
+
+
+def test_stamp_gate_reads_a_clock_function_only_when_the_newest_stamp_cannot_decide() -> None:
+    gate = conv.StampGate(max_lead_ns=100)
+    reads: list[int] = []
+
+    def clock(value: int | None) -> Callable[[], int | None]:
+        def read() -> int | None:
+            reads.append(1)
+            return value
+
+        return read
+
+    gate.accept("a", gate.check("a", 1_000, clock(None)))  # nothing to compare with
+    assert len(reads) == 1
+    gate.accept("a", gate.check("a", 1_100, clock(0)))  # within the lead of the newest
+    assert len(reads) == 1
+    with pytest.raises(conv.MessageValidationError, match="ahead"):
+        gate.check("b", 1_201, clock(1_000))  # beyond both: refused, as with the value
+    assert len(reads) == 2
+    assert gate.check("b", 1_201, clock(1_150)) == 1_201  # a later clock admits it
+    assert len(reads) == 3
+    gate.accept("b", 1_201)
+    assert gate.latest_ns == 1_201  # kept as the newest accepted stamp
 
 
 def test_huge_numbers_are_rejected_not_overflowed() -> None:

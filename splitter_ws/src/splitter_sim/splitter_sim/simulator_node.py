@@ -43,6 +43,7 @@ Invalid parameters stop the node at start-up with a message naming the parameter
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -88,6 +89,7 @@ from splitter_msgs_py.parameters import (
     rejection_counts,
     warn_throttled,
 )
+from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 from splitter_sim.core.scene import scene_arrows
@@ -114,6 +116,7 @@ STATE_TOPICS = (
 )
 MODES = ("lockstep", "real_time")
 LOCKSTEP_POLL_S = 0.005  # [s] wall period of the lockstep driver timer
+SLACK_WARNING_PERIOD_S = 1.0  # [s] wall: at most one tether-slack warning per period
 BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
 # [ns] commands may not be stamped later than the simulated time: they answer states
 MAX_COMMAND_LEAD_NS = 0
@@ -373,9 +376,11 @@ class SimulatorNode(Node):
         self._published_t_ns: int | None = None
         self._peak_hemi_g = 0.0  # [G] largest hemi specific force of any published state
         self.lockstep = LockstepWait(LOCKSTEP_TOPICS, self._timeout_s)
+        self._has_publisher = PublisherPresence(self)
         self._stamps = StampGate(MAX_COMMAND_LEAD_NS)
         self._slack_events = 0
         self._was_slack = False
+        self._slack_warned_at = -math.inf  # [s] wall time of the last slack warning
         self._last_state: SimState | None = None
         self._publish_failures = 0
 
@@ -616,7 +621,7 @@ class SimulatorNode(Node):
                 return
 
     def _tick_answered(self, t: int) -> bool:
-        waiting = self.lockstep.waiting_for(t, lambda topic: self.count_publishers(topic) > 0)
+        waiting = self.lockstep.waiting_for(t, self._has_publisher)
         step, waited = self.lockstep.may_step(waiting, time.monotonic())
         if waited is not None:
             self.get_logger().warning(
@@ -742,10 +747,13 @@ class SimulatorNode(Node):
             publisher.publish(msg)
         if state.tether_slack and not self._was_slack:
             self._slack_events += 1
-            self.get_logger().warning(
-                f"t = {t * 1e-9:.3f} s: tether slack (tension {state.tether_tension_n:.3g} N)",
-                throttle_duration_sec=1.0,
-            )
+            # throttled here: rclpy's throttle looks up the caller's source line first
+            now = time.monotonic()
+            if now - self._slack_warned_at >= SLACK_WARNING_PERIOD_S:
+                self._slack_warned_at = now
+                self.get_logger().warning(
+                    f"t = {t * 1e-9:.3f} s: tether slack (tension {state.tether_tension_n:.3g} N)"
+                )
         self._was_slack = state.tether_slack
         if t % self._markers_ns == 0:
             self._markers_pub.publish(_markers(t, state))
