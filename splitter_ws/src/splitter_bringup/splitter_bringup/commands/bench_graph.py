@@ -8,6 +8,14 @@ over the wall time of the simulator's stepping, ``flight_wall_time_s``) beside
 the goal (5x, issue 18), start-up apart (processes, solver load, discovery), and
 the largest relative difference of the summary metrics between the two backends.
 
+Beside them, what bounds the graph from below in one process: the *transport
+floor* (:mod:`splitter_bringup.transport_floor`: the graph's per-step messages
+through rclpy with no computation) and the library loop's flight (the same
+physics and control with no messages; the controller built beforehand, as the
+graph builds it before its flight). Their sum is the fastest flight the graph could
+reach with every node's own work (building, checking and recording messages)
+free; ``ceiling_real_time_factor`` is the duration over it.
+
 Profile the graph's processes with py-spy, e.g. ``py-spy record -o sim.svg --pid
 PID`` on the simulator while ``splitter launch lunar_jumping`` runs.
 """
@@ -76,9 +84,16 @@ def largest_relative_difference(a: dict[str, float], b: dict[str, float]) -> tup
 
 def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") -> dict:
     """Figures of one scenario variant through the graph (in ``mode``) and the library."""
-    from splitter_bringup.core.closed_loop import run_closed_loop
+    from splitter_bringup.core.closed_loop import (
+        CONTROL_PERIOD_NS,
+        controller_config,
+        run_closed_loop,
+    )
     from splitter_bringup.core.scenario import load_scenario
     from splitter_bringup.graph_run import WallTiming, run_graph
+    from splitter_bringup.transport_floor import graph_subscriptions, measure_transport_floor
+    from splitter_model.model import RobotModel
+    from splitter_mpc.core.controller import MorphingController
 
     scenario = load_scenario(name, variant)
     timing: list[WallTiming] = []
@@ -90,6 +105,19 @@ def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") 
     started = time.monotonic()
     library = run_closed_loop(scenario)
     library_wall = time.monotonic() - started
+    model = RobotModel()
+    with MorphingController(model, controller_config(scenario)) as controller:
+        started = time.monotonic()
+        run_closed_loop(scenario, model=model, controller=controller)
+        library_flight = time.monotonic() - started
+    floor = measure_transport_floor(
+        scenario.duration_s,
+        scenario.sim_dt_s,
+        CONTROL_PERIOD_NS * 1e-9,
+        subscriptions=graph_subscriptions(
+            scenario.controller.attitude_reference == "momentum_aligned"
+        ),
+    )
     worst, metric = largest_relative_difference(
         _metric_values(graph, scenario), _metric_values(library, scenario)
     )
@@ -106,6 +134,10 @@ def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") 
         "goal_real_time_factor": GOAL_REAL_TIME_FACTOR,
         "library_wall_time_s": library_wall,
         "library_real_time_factor": scenario.duration_s / library_wall,
+        "library_flight_wall_time_s": library_flight,
+        "transport_floor_s": floor.wall_s,
+        "transport_floor_messages": {"published": floor.published, "delivered": floor.delivered},
+        "ceiling_real_time_factor": scenario.duration_s / (floor.wall_s + library_flight),
         "largest_metric_difference": worst,
         "largest_metric_difference_name": metric,
     }
@@ -132,5 +164,10 @@ def main(args: argparse.Namespace) -> int:
             f"{GOAL_REAL_TIME_FACTOR:g}x), start-up {r['startup_s']:.1f} s; library "
             f"{r['library_real_time_factor']:.1f}x; largest metric difference "
             f"{100 * r['largest_metric_difference']:.3g} % ({r['largest_metric_difference_name']})"
+        )
+        print(
+            f"  bound in one process: transport floor {r['transport_floor_s']:.2f} s + "
+            f"library flight {r['library_flight_wall_time_s']:.2f} s = "
+            f"{r['ceiling_real_time_factor']:.1f}x real time at best"
         )
     return 0
