@@ -174,7 +174,11 @@ def principal_inertia(model: RobotModel, radii_m: ArrayLike) -> NDArray[np.float
     ixx = 4.0 * my * ry**2 + 4.0 * mz * rz**2
     iyy = m_tether * rx**2 + 4.0 * mz * rz**2
     izz = m_tether * rx**2 + 4.0 * my * ry**2
-    return np.stack([ixx, iyy, izz], axis=-1)
+    moments = np.empty((*np.shape(ixx), 3))  # (np.stack's result, without its overhead)
+    moments[..., 0] = ixx
+    moments[..., 1] = iyy
+    moments[..., 2] = izz
+    return moments
 
 
 def radii_from_inertia(model: RobotModel, inertia_kg_m2: ArrayLike) -> NDArray[np.float64]:

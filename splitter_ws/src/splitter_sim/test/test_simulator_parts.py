@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -246,3 +247,19 @@ def test_initial_state_names_the_invalid_field(field: str, value: object) -> Non
 def test_unreachable_initial_radii_are_refused() -> None:
     with pytest.raises(ValueError, match="radii_m"):
         Simulator(MODEL, SimConfig(), InitialState(radii_m=(2.8, 0.6, 0.2)))
+
+
+# --- the state snapshot ----------------------------------------------------------------
+def test_a_snapshot_is_finite_unless_a_number_is_nan_or_infinite() -> None:
+    state = Simulator(MODEL, SimConfig(), InitialState()).state()
+    assert state.is_finite()
+    huge = np.full(3, 1e308)  # finite, but their sum overflows
+    assert replace(state, position_m=huge, velocity_m_s=huge).is_finite()
+    for bad in (math.nan, math.inf, -math.inf):
+        assert not replace(state, tether_tension_n=bad).is_finite()
+        vector = np.array([0.0, bad, 1.0])
+        assert not replace(state, angular_velocity_rad_s=vector).is_finite()
+    opposite = replace(
+        state, position_m=np.array([math.inf, 0, 0]), velocity_m_s=np.array([-math.inf, 0, 0])
+    )
+    assert not opposite.is_finite()  # (their sum is NaN)

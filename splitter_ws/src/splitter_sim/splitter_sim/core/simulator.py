@@ -226,14 +226,30 @@ class SimState:
 
     def is_finite(self) -> bool:
         """Every number in the snapshot is finite."""
-        for f in fields(self):
-            value = getattr(self, f.name)
+        # A finite sum of all the numbers has no NaN or infinity among them (either would
+        # make it NaN or infinite); a sum that overflows is checked number by number.
+        total = 0.0
+        for name in _SIM_STATE_FIELDS:
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray):
+                if value.dtype != bool:
+                    total += float(value.sum())
+            elif isinstance(value, float):
+                total += value
+        return math.isfinite(total) or self._each_finite()
+
+    def _each_finite(self) -> bool:
+        for name in _SIM_STATE_FIELDS:
+            value = getattr(self, name)
             if isinstance(value, np.ndarray) and value.dtype != bool:
                 if not np.isfinite(value).all():
                     return False
             elif isinstance(value, float) and not math.isfinite(value):
                 return False
         return True
+
+
+_SIM_STATE_FIELDS = tuple(f.name for f in fields(SimState))
 
 
 def _readonly(a: ArrayLike) -> NDArray:
