@@ -229,13 +229,14 @@ class SimState:
         # A finite sum of all the numbers has no NaN or infinity among them (either would
         # make it NaN or infinite); a sum that overflows is checked number by number.
         total = 0.0
-        for name in _SIM_STATE_FIELDS:
-            value = getattr(self, name)
-            if isinstance(value, np.ndarray):
-                if value.dtype != bool:
-                    total += float(value.sum())
-            elif isinstance(value, float):
-                total += value
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is checked below
+            for name in _SIM_STATE_FIELDS:
+                value = getattr(self, name)
+                if isinstance(value, np.ndarray):
+                    if value.dtype != bool:
+                        total += float(value.sum())
+                elif isinstance(value, float):
+                    total += value
         return math.isfinite(total) or self._each_finite()
 
     def _each_finite(self) -> bool:
