@@ -20,3 +20,20 @@ def test_round_off_zeros_are_compared_absolutely() -> None:
     assert name == "residual"
     assert worst == pytest.approx(1.01e-7 / METRIC_FLOOR)
     assert largest_relative_difference({"x": 2.0}, {"x": 2.0}) == (0.0, "")
+
+
+def test_the_time_plot_splits_each_flight_and_refuses_a_run_without_its_floor(tmp_path) -> None:
+    from splitter_bringup.core.plots import plot_graph_time
+
+    run = {
+        "scenario": "lunar_jumping",
+        "mode": "in-process",
+        "duration_s": 16.0,
+        "flight_wall_time_s": 7.0,
+        "transport_floor_s": 1.5,
+        "library_flight_wall_time_s": 2.0,
+    }
+    path = plot_graph_time([run, {**run, "mode": "processes"}], tmp_path / "time.png", 5.0)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(KeyError, match="transport_floor_s"):
+        plot_graph_time([{k: v for k, v in run.items() if k != "transport_floor_s"}], path)

@@ -53,6 +53,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"graph mode (repeatable; default: {', '.join(GRAPH_MODES)})",
     )
     parser.add_argument("--out", type=Path, default=None, help="keep the runs in this folder")
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="PNG",
+        help="also plot where each flight's wall time goes (floor, library loop, the rest)",
+    )
 
 
 def _metric_values(series, scenario) -> dict[str, float]:
@@ -153,6 +160,16 @@ def main(args: argparse.Namespace) -> int:
             for mode in args.mode or GRAPH_MODES:
                 print(f"bench graph: {name} ({mode}) ...", file=sys.stderr, flush=True)
                 results.append(bench_scenario(name, args.variant, out, mode))
+    if args.plot is not None:
+        from splitter_bringup.core.plots import plot_graph_time
+
+        plot_graph_time(
+            results,
+            args.plot,
+            GOAL_REAL_TIME_FACTOR,
+            "Lockstep graph: where a flight's wall time goes (splitter bench graph)",
+        )
+        print(f"wrote {args.plot}", file=sys.stderr)
     if args.json:
         print(json.dumps({"goal_real_time_factor": GOAL_REAL_TIME_FACTOR, "runs": results}))
         return 0

@@ -175,6 +175,49 @@ def plot_solve_times(
     return save_figure(fig, path, title)
 
 
+def plot_graph_time(
+    runs: Sequence[Mapping[str, float | str]],
+    path: Path,
+    goal_real_time_factor: float | None = None,
+    title: str = "",
+) -> Path:
+    """Where each lockstep-graph flight's wall time goes, per simulated second.
+
+    Each run (``splitter bench graph``'s JSON: ``scenario``, ``mode``, ``duration_s``,
+    ``flight_wall_time_s``, ``transport_floor_s``, ``library_flight_wall_time_s``) is
+    one bar split into the transport floor (the messages alone), the library loop
+    (physics and control alone) and the rest: the nodes' own work (building,
+    checking and recording messages). ``goal_real_time_factor`` draws its budget.
+    """
+    labels = [f"{r['scenario']}\n({r['mode']})" for r in runs]
+    per_s = [1.0 / float(r["duration_s"]) for r in runs]
+    floor = np.array([float(r["transport_floor_s"]) * k for r, k in zip(runs, per_s, strict=True)])
+    library = np.array(
+        [float(r["library_flight_wall_time_s"]) * k for r, k in zip(runs, per_s, strict=True)]
+    )
+    flight = np.array(
+        [float(r["flight_wall_time_s"]) * k for r, k in zip(runs, per_s, strict=True)]
+    )
+    rest = np.maximum(flight - floor - library, 0.0)
+    fig, ax = plt.subplots(figsize=(10, 2.2 + 0.9 * len(runs)))
+    y = np.arange(len(runs))
+    ax.barh(y, floor, color="tab:blue", label="transport floor (messages alone)")
+    ax.barh(y, library, left=floor, color="tab:orange", label="library loop (physics, control)")
+    ax.barh(y, rest, left=floor + library, color="tab:gray", label="nodes' own work (the rest)")
+    for yi, total in zip(y, flight, strict=True):
+        ax.text(total, yi, f" {1.0 / total:.2f}x", va="center")
+    if goal_real_time_factor is not None:
+        budget = 1.0 / goal_real_time_factor
+        ax.axvline(budget, color="k", linestyle="--", label=f"{goal_real_time_factor:g}x budget")
+    ax.set_yticks(y, labels)
+    ax.invert_yaxis()
+    ax.set_xlabel("wall time per simulated second [s/s]")
+    ax.set_xlim(0.0, 1.15 * float(np.max(flight, initial=0.2)))
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12 - 0.3 / len(runs)), ncol=2)
+    return save_figure(fig, path, title)
+
+
 def plot_findings(findings: Sequence[FindingResult], path: Path, title: str = "") -> Path:
     """One panel per checked finding: its metric on the two variants compared."""
     checked = [f for f in findings if f.reproduced is not None]
