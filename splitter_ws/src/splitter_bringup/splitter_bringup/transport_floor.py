@@ -89,7 +89,8 @@ STATE_TOPICS = (
     names.IMU,
 )
 RECORDED_TOPICS = (*STATE_TOPICS, names.INERTIA_SETPOINT, names.JOINT_COMMANDS, names.JUMP_COMMAND)
-DISCOVERY_S = 2.0  # [s] wall: executor turns before the first step (DDS matching)
+DISCOVERY_TIMEOUT_S = 30.0  # [s] wall: longest wait for every publisher to match
+SETTLE_S = 0.5  # [s] wall: executor turns once matched, before the first step
 DRAIN_TURNS = 20  # executor turns after the last step, untimed
 
 
@@ -273,6 +274,38 @@ def _recorder(context: Context, count: _Counter, overrides: list[Parameter]) -> 
     return node
 
 
+def _expected_subscriptions(topic: str, table: dict[str, tuple[str, ...]]) -> int:
+    """Subscriptions on ``topic``: the table's, the recorder's, and every sim-time clock."""
+    count = sum(topic in topics for topics in table.values()) + (topic in RECORDED_TOPICS)
+    if topic == names.CLOCK:
+        count += len(TICK_ANSWERS) + 1  # the controllers' and the recorder's time sources
+    return count
+
+
+def _wait_until_matched(
+    executor, nodes: list[Node], table: dict[str, tuple[str, ...]], timeout_s: float
+) -> None:
+    """Spin until every publisher matched all its subscriptions (reliable QoS delivers
+    nothing to a reader not matched yet, and the tick chain would wait forever)."""
+    publishers = [
+        p for node in nodes for p in node.publishers if p.topic_name in TOPIC_MESSAGE_CLASSES
+    ]
+    deadline = time.monotonic() + timeout_s
+    while True:
+        unmatched = [
+            p.topic_name
+            for p in publishers
+            if p.get_subscription_count() < _expected_subscriptions(p.topic_name, table)
+        ]
+        if not unmatched:
+            return
+        if time.monotonic() > deadline:
+            raise TimeoutError(
+                f"transport floor: no full DDS match after {timeout_s:g} s on {unmatched}"
+            )
+        executor.spin_once(timeout_sec=0.05)
+
+
 def measure_transport_floor(
     duration_s: float,
     dt_s: float = 0.005,
@@ -322,7 +355,8 @@ def measure_transport_floor(
         executor = make_executor(context)
         for node in nodes:
             executor.add_node(node)
-        settle_end = time.monotonic() + DISCOVERY_S
+        _wait_until_matched(executor, nodes, table, DISCOVERY_TIMEOUT_S)
+        settle_end = time.monotonic() + SETTLE_S
         while time.monotonic() < settle_end:
             executor.spin_once(timeout_sec=0.05)
         wall0, cpu0 = time.perf_counter(), time.process_time()
