@@ -28,7 +28,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import rclpy
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
@@ -38,12 +37,11 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_msgs_py import names
-from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg
+from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg, stamp_to_msg
 from splitter_msgs_py.executors import make_executor
 from splitter_msgs_py.qos import qos_for
 
 _LOG = logging.getLogger(__name__)
-_NS_PER_S = 1_000_000_000
 
 # What each node of the graph subscribes to (the recorder: every topic, raw). The gait
 # manager also takes the measured inertia when its reference is momentum-aligned
@@ -124,10 +122,6 @@ def graph_subscriptions(gait_takes_inertia: bool = False) -> dict[str, tuple[str
     return table
 
 
-def _stamp(t_ns: int) -> Time:
-    return Time(sec=t_ns // _NS_PER_S, nanosec=t_ns % _NS_PER_S)
-
-
 def _state_messages() -> dict[str, object]:
     """One message per state topic, shaped as the simulator's (25 joints, unit quaternion)."""
     joints = JointState(name=list(names.JOINT_NAMES))
@@ -179,7 +173,7 @@ class _NullSimulator:
         )
 
     def _publish(self) -> None:
-        stamp = _stamp(self.t_ns)
+        stamp = stamp_to_msg(self.t_ns)
         for publisher, msg in self._publishers:
             if isinstance(msg, Clock):
                 msg.clock = stamp
