@@ -5,20 +5,53 @@ A node lists its parameters as :class:`ParameterSpec` objects and calls
 ``ParameterDescriptor`` (description, range) and its value validated; an
 invalid value raises :class:`InvalidParameterError` naming the parameter, which
 stops the node at start-up with that message.
+
+At runtime (``ros2 param set``, rqt_reconfigure, the ``~/set_parameters``
+service) every parameter is one of two kinds (docs/ARCHITECTURE.md, "Parameters"):
+
+* read-only (the default): read at start-up only. Its descriptor says
+  ``read_only``, so rclpy refuses a set with "Trying to set a read-only
+  parameter: <name>." before anything else sees it.
+* live (``ParameterSpec(live=True)``): one set-parameters callback per node
+  validates every incoming value with its spec (type, finiteness, range,
+  choices, length) and refuses an invalid one with a reason naming the
+  parameter; a valid change is handed to the node's ``on_live_change`` function,
+  which applies it to the node's core object (or refuses it, e.g. when it needs
+  a rebuild), then logged and counted (:func:`parameter_diagnostics`, on the
+  node's ``/diagnostics``).
+
+Any other runtime set is refused: rclpy's own ``use_sim_time`` (the graph's
+clock is chosen by its launcher, and rclpy would switch it live) and any
+parameter a node declared by hand without marking it read-only. Nothing is
+accepted and ignored.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 ParameterValue = bool | int | float | str | list[float] | list[str]
+# Applies a live change: the node's validated values after the change (every
+# parameter declared through declare_parameters). Raises InvalidParameterError or
+# ValueError to refuse it (nothing applied).
+LiveApply = Callable[[Mapping[str, ParameterValue]], None]
+
+READ_ONLY_NOTE = " [read-only: read at start-up]"
+LIVE_NOTE = " [live: a valid runtime change is applied]"
+USE_SIM_TIME = "use_sim_time"
 
 
 class InvalidParameterError(ValueError):
@@ -30,7 +63,9 @@ class ParameterSpec:
     """One node parameter: the default's type decides the ROS type.
 
     A list default is a float array, or a string array with ``item_type=str``
-    (needed because an empty default says nothing about its items).
+    (needed because an empty default says nothing about its items). ``live``:
+    a runtime change is validated and applied (module docstring); otherwise the
+    parameter is read-only.
     """
 
     name: str
@@ -41,15 +76,17 @@ class ParameterSpec:
     choices: tuple[str, ...] | None = None
     length: int | None = None  # fixed size of an array
     item_type: type = float  # float or str, for list defaults
+    live: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
-        """The ROS descriptor advertising description and range."""
+        """The ROS descriptor advertising description, range and read-only."""
         text = self.description
         if self.choices:
             text += f" (one of: {', '.join(self.choices)})"
         if self.length is not None:
             text += f" ({self.length} values)"
-        desc = ParameterDescriptor(name=self.name, description=text)
+        text += LIVE_NOTE if self.live else READ_ONLY_NOTE
+        desc = ParameterDescriptor(name=self.name, description=text, read_only=not self.live)
         lo, hi = self.min_value, self.max_value
         if isinstance(self.default, bool) or (lo is None and hi is None):
             return desc
@@ -71,6 +108,13 @@ class ParameterSpec:
             ]
         return desc
 
+    @property
+    def is_float(self) -> bool:
+        """A float number or a float array (an integer given for it is accepted)."""
+        if isinstance(self.default, list):
+            return self.item_type is not str
+        return isinstance(self.default, float)
+
     def validate(self, value: object) -> ParameterValue:
         """The value, checked against type, finiteness, range, choices and length."""
         where = f"parameter '{self.name}'"
@@ -91,10 +135,15 @@ class ParameterSpec:
                 raise InvalidParameterError(f"{where} items must be in {self.choices}")
             return list(value)
         if isinstance(self.default, list):
+            items = None if isinstance(value, str | bytes) else value
             try:
-                values = [float(v) for v in value]  # type: ignore[union-attr]
+                if any(isinstance(v, bool) for v in items):  # type: ignore[union-attr]
+                    raise TypeError("bool items")
+                values = [float(v) for v in items]  # type: ignore[union-attr]
             except (TypeError, ValueError):
-                raise InvalidParameterError(f"{where} must be a list of numbers") from None
+                raise InvalidParameterError(
+                    f"{where} must be a list of numbers, got {value!r}"
+                ) from None
             if self.length is not None and len(values) != self.length:
                 raise InvalidParameterError(
                     f"{where} must have {self.length} values, got {len(values)}"
@@ -104,7 +153,12 @@ class ParameterSpec:
             return values
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise InvalidParameterError(f"{where} must be a number, got {value!r}")
-        number = int(value) if isinstance(self.default, int) else float(value)
+        if isinstance(self.default, int):
+            if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+                raise InvalidParameterError(f"{where} must be an integer, got {value!r}")
+            number: int | float = int(value)
+        else:
+            number = float(value)
         self._check_number(float(number), where)
         return number
 
@@ -117,13 +171,39 @@ class ParameterSpec:
             raise InvalidParameterError(f"{where} must be <= {self.max_value}, got {v}")
 
 
-def declare_parameters(node: Node, specs: Sequence[ParameterSpec]) -> dict[str, ParameterValue]:
+@dataclass
+class _NodeParameters:
+    """A node's declared specs, their current values and the live-change handlers."""
+
+    specs: dict[str, ParameterSpec] = field(default_factory=dict)
+    values: dict[str, ParameterValue] = field(default_factory=dict)
+    handlers: list[tuple[frozenset[str], LiveApply]] = field(default_factory=list)
+    changes: int = 0
+    last_change: str = ""
+
+
+def _state(node: Node) -> _NodeParameters | None:
+    return node.__dict__.get("_splitter_parameters")
+
+
+def declare_parameters(
+    node: Node,
+    specs: Sequence[ParameterSpec],
+    on_live_change: LiveApply | None = None,
+) -> dict[str, ParameterValue]:
     """Declare every parameter with its descriptor, read and validate it.
 
     Validation runs on the value given at start-up (parameter file or override)
     so that an invalid value stops the node before it does anything.
     Integers given for float parameters are accepted.
+
+    ``on_live_change`` is required when a spec is live: it applies a validated
+    runtime change (module docstring). The first call on a node installs its
+    set-parameters callbacks; later calls add their specs to them.
     """
+    live = [spec.name for spec in specs if spec.live]
+    if live and on_live_change is None:
+        raise TypeError(f"live parameters {live} need an on_live_change function")
     values: dict[str, ParameterValue] = {}
     for spec in specs:
         descriptor = spec.descriptor()
@@ -138,6 +218,90 @@ def declare_parameters(node: Node, specs: Sequence[ParameterSpec]) -> dict[str, 
             # rclpy cannot type an empty YAML list and leaves such a parameter unset.
             raw = [] if raw is None else list(raw)
         values[spec.name] = spec.validate(raw)
+    state = _state(node)
+    if state is None:
+        state = _NodeParameters()
+        node.__dict__["_splitter_parameters"] = state
+        node.add_pre_set_parameters_callback(lambda params: _as_floats(state, params))
+        node.add_on_set_parameters_callback(lambda params: _on_set(node, state, params))
+    state.specs.update({spec.name: spec for spec in specs})
+    state.values.update(values)
+    if live:
+        state.handlers.append((frozenset(live), on_live_change))  # type: ignore[arg-type]
+    return values
+
+
+def _as_floats(state: _NodeParameters, params: list[Parameter]) -> list[Parameter]:
+    """An integer (array) given for a float (array) parameter, as the float it stands for."""
+    converted = []
+    for p in params:
+        spec = state.specs.get(p.name)
+        if spec is not None and spec.is_float and p.type_ == Parameter.Type.INTEGER:
+            converted.append(Parameter(p.name, Parameter.Type.DOUBLE, float(p.value)))
+        elif spec is not None and spec.is_float and p.type_ == Parameter.Type.INTEGER_ARRAY:
+            values = [float(v) for v in p.value]
+            converted.append(Parameter(p.name, Parameter.Type.DOUBLE_ARRAY, values))
+        else:
+            converted.append(p)
+    return converted
+
+
+def _refused(reason: str) -> SetParametersResult:
+    return SetParametersResult(successful=False, reason=reason)
+
+
+def _on_set(node: Node, state: _NodeParameters, params: list[Parameter]) -> SetParametersResult:
+    """Validate a runtime set, apply it live or refuse it with a reason."""
+    changes: dict[str, ParameterValue] = {}
+    for p in params:
+        if p.name == USE_SIM_TIME:
+            return _refused(
+                f"parameter '{USE_SIM_TIME}' is read at start-up: the graph's clock (simulated "
+                "/clock or wall time) is chosen by its launcher; restart the node to change it"
+            )
+        if not node.has_parameter(p.name):
+            continue  # a declaration: checked where it is declared
+        spec = state.specs.get(p.name)
+        if spec is None or not spec.live:
+            return _refused(
+                f"parameter '{p.name}' is read at start-up only; restart the node to change it"
+            )
+        try:
+            changes[p.name] = spec.validate(p.value)
+        except InvalidParameterError as exc:
+            return _refused(str(exc))
+    if not changes:
+        return SetParametersResult(successful=True)
+    values = {**state.values, **changes}
+    for handled, apply in state.handlers:
+        if handled & changes.keys():
+            try:
+                apply(values)
+            except ValueError as exc:  # InvalidParameterError included
+                names = ", ".join(f"'{name}'" for name in changes)
+                return _refused(f"parameter {names} not applied: {exc}")
+    state.values = values
+    for name, value in changes.items():
+        state.changes += 1
+        state.last_change = f"{name} = {value}"
+        node.get_logger().info(f"parameter '{name}' set to {value}: applied live")
+    return SetParametersResult(successful=True)
+
+
+def live_parameter_values(node: Node) -> dict[str, ParameterValue]:
+    """The validated values of ``node``'s parameters, live changes included."""
+    state = _state(node)
+    return {} if state is None else dict(state.values)
+
+
+def parameter_diagnostics(node: Node) -> dict[str, int | str]:
+    """Live parameter changes applied so far and the last one, for ``/diagnostics``."""
+    state = _state(node)
+    if state is None:
+        return {"parameter_changes": 0}
+    values: dict[str, int | str] = {"parameter_changes": state.changes}
+    if state.last_change:
+        values["last_parameter_change"] = state.last_change
     return values
 
 
