@@ -43,6 +43,7 @@ overridden.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 import rclpy
@@ -74,7 +75,9 @@ from splitter_msgs_py.conversions import (
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
+    ParameterValue,
     declare_parameters,
+    parameter_diagnostics,
     rejection_counts,
     warn_throttled,
 )
@@ -104,6 +107,7 @@ PARAMETERS = (
         "least tether tension kept while reeling (the tether only pulls) [N]",
         min_value=1e-6,
         max_value=1e4,
+        live=True,
     ),
     ParameterSpec(
         "low_spin_tension_fraction",
@@ -112,6 +116,7 @@ PARAMETERS = (
         "tension_margin_n (slow spin across the tether) [-]",
         min_value=1e-3,
         max_value=1.0,
+        live=True,
     ),
     ParameterSpec(
         "reference_velocity_window_s",
@@ -120,6 +125,7 @@ PARAMETERS = (
         "period), braking taut; 0: each setpoint approached as a resting target [s]",
         min_value=0.0,
         max_value=10.0,
+        live=True,
     ),
     ParameterSpec(
         "speed_fraction",
@@ -168,8 +174,11 @@ PARAMETERS = (
         "diagnostics period in simulated time [s]",
         min_value=1e-3,
         max_value=100.0,
+        live=True,
     ),
 )
+# The live ones are read by the allocator on every tick (the speed and acceleration
+# shares size its limiters when it is built: read-only).
 
 
 class _Window:
@@ -196,7 +205,7 @@ class IkTetherAllocatorNode(Node):
             overrides.append(Parameter("use_sim_time", value=True))
         super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
         try:
-            values = declare_parameters(self, PARAMETERS)
+            values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             self.model = RobotModel()
             self.config = self._allocator_config(values)
             self._initial_radii = self._checked_radii(values["initial_radii_m"])
@@ -261,6 +270,14 @@ class IkTetherAllocatorNode(Node):
         except ValueError as exc:  # the config names its field, the same as the parameter
             field = next((k for k in values if f".{k} " in str(exc)), "allocator parameters")
             raise InvalidParameterError(f"parameter '{field}': {exc}") from exc
+
+    def _apply_live(self, values: Mapping[str, ParameterValue]) -> None:
+        """A live parameter change, applied from the next tick on."""
+        config = self._allocator_config(dict(values))
+        self.config = config
+        if self.allocator is not None:
+            self.allocator.config = config
+        self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
 
     def _checked_radii(self, radii: list[float]) -> np.ndarray:
         r = np.array(radii, dtype=float)
@@ -477,6 +494,7 @@ class IkTetherAllocatorNode(Node):
         }
         for key, count in sorted(rejection_counts(self).items()):
             values[f"total_warnings_{key}"] = count
+        values.update(parameter_diagnostics(self))
         problems = []
         if a is not None:
             values.update(

@@ -39,6 +39,8 @@ simulated time).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -80,9 +82,12 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.parameters import (
+    READ_ONLY_NOTE,
     InvalidParameterError,
     ParameterSpec,
+    ParameterValue,
     declare_parameters,
+    parameter_diagnostics,
     rejection_counts,
     warn_throttled,
 )
@@ -117,6 +122,7 @@ PARAMETERS = (
         "contact normal force above which a hemi is in stance [N]",
         min_value=1e-3,
         max_value=1e4,
+        live=True,
     ),
     ParameterSpec(
         "touchdown_debounce_s",
@@ -124,6 +130,7 @@ PARAMETERS = (
         "stance without a break for at least this long means touchdown [s]",
         min_value=0.0,
         max_value=1.0,
+        live=True,
     ),
     ParameterSpec(
         "liftoff_debounce_s",
@@ -131,6 +138,7 @@ PARAMETERS = (
         "no stance for longer than this means lift-off [s]",
         min_value=0.0,
         max_value=1.0,
+        live=True,
     ),
     ParameterSpec(
         "landed_speed_m_s",
@@ -138,6 +146,7 @@ PARAMETERS = (
         "centre-of-mass speed below which the robot is at rest [m/s]",
         min_value=1e-4,
         max_value=10.0,
+        live=True,
     ),
     ParameterSpec(
         "landed_angular_speed_rad_s",
@@ -145,6 +154,7 @@ PARAMETERS = (
         "angular speed below which the robot is at rest [rad/s]",
         min_value=1e-4,
         max_value=10.0,
+        live=True,
     ),
     ParameterSpec(
         "landed_dwell_s",
@@ -152,6 +162,7 @@ PARAMETERS = (
         "time at rest in stance before LANDED [s]",
         min_value=0.0,
         max_value=60.0,
+        live=True,
     ),
     ParameterSpec(
         "w_ref_rad_s",
@@ -217,7 +228,12 @@ def declare_string_array(node: Node, name: str, description: str) -> list[str]:
     dynamic because an empty list arrives untyped (a params file's ``[]`` is
     unset, an override's ``[]`` is a byte array): any empty value means none.
     """
-    descriptor = ParameterDescriptor(name=name, description=description, dynamic_typing=True)
+    descriptor = ParameterDescriptor(
+        name=name,
+        description=description + READ_ONLY_NOTE,
+        dynamic_typing=True,
+        read_only=True,
+    )
     try:
         node.declare_parameter(name, [], descriptor)
     except ParameterException as exc:
@@ -297,11 +313,12 @@ class GaitPhaseManagerNode(Node):
 
     # -- parameters ----------------------------------------------------------------------
     def _read_parameters(self) -> tuple[GaitConfig, tuple[int, int]]:
-        values = declare_parameters(self, PARAMETERS)
-        values.update(declare_plan_arrays(self))
-        values["jump_hemis"] = declare_string_array(
+        values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
+        self._plan = declare_plan_arrays(self)
+        self._plan["jump_hemis"] = declare_string_array(
             self, "jump_hemis", "pushing hemi per planned jump: 'a', 'b' or 'auto'"
         )
+        values.update(self._plan)
         control_ns = seconds_to_ns(values["control_period_s"])
         diagnostics_ns = seconds_to_ns(values["diagnostics_period_s"])
         if diagnostics_ns % control_ns != 0:
@@ -314,6 +331,14 @@ class GaitPhaseManagerNode(Node):
         except ValueError as exc:
             raise _named_parameter_error(exc) from exc
         return config, (control_ns, diagnostics_ns)
+
+    def _apply_live(self, values: Mapping[str, ParameterValue]) -> None:
+        """A live change of the contact and landing thresholds, from the next tick on."""
+        try:
+            config = gait_config_from_parameters({**values, **self._plan})
+        except ValueError as exc:
+            raise _named_parameter_error(exc) from exc
+        self._machine.config = config
 
     # -- inputs --------------------------------------------------------------------------
     def _clock_ns(self) -> int | None:
@@ -512,6 +537,7 @@ class GaitPhaseManagerNode(Node):
             "ticks_answered": self._ticks_answered,
             "ticks_with_rejected_input": self._stale_ticks,
             "rejected_messages": rejected,
+            **parameter_diagnostics(self),
         }
         if output is None:
             level, message = 1, "no good input yet"

@@ -24,6 +24,7 @@ its last good data.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,9 @@ from splitter_msgs_py.conversions import (
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
+    ParameterValue,
     declare_parameters,
+    parameter_diagnostics,
     rejection_counts,
     warn_throttled,
 )
@@ -71,18 +74,54 @@ NODE_NAME = "inertial_morphing_mpc"
 MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates
 
 PARAMETERS = (
-    ParameterSpec("enabled", True, "run the MPC; false holds the nominal inertia (open loop)"),
-    ParameterSpec("q_w", [100.0, 100.0, 100.0], "angular velocity weights Q_w", 0.0, 1e9, length=3),
     ParameterSpec(
-        "r", [0.01, 1.0, 1.0], "control effort weights R (dI per step)", 1e-9, 1e9, length=3
+        "enabled", True, "run the MPC; false holds the nominal inertia (open loop)", live=True
     ),
     ParameterSpec(
-        "q_t", [100.0, 10.0, 100.0], "terminal angular velocity weights Q_t", 0.0, 1e9, length=3
+        "q_w", [100.0, 100.0, 100.0], "angular velocity weights Q_w", 0.0, 1e9, length=3, live=True
     ),
-    ParameterSpec("q_q", 0.0, "quaternion tracking weight Q_q", 0.0, 1e9),
-    ParameterSpec("q_tq", 0.0, "terminal quaternion weight Q_tq", 0.0, 1e9),
     ParameterSpec(
-        "tension_slack_weight", 100.0, "L1 penalty of a tension shortfall [s^2/rad^2]", 0.0, 1e9
+        "r",
+        [0.01, 1.0, 1.0],
+        "control effort weights R (dI per step)",
+        1e-9,
+        1e9,
+        length=3,
+        live=True,
+    ),
+    ParameterSpec(
+        "q_t",
+        [100.0, 10.0, 100.0],
+        "terminal angular velocity weights Q_t",
+        0.0,
+        1e9,
+        length=3,
+        live=True,
+    ),
+    ParameterSpec(
+        "q_q",
+        0.0,
+        "quaternion tracking weight Q_q (live while > 0 from start-up: the attitude is then "
+        "in the MPC's state)",
+        0.0,
+        1e9,
+        live=True,
+    ),
+    ParameterSpec(
+        "q_tq",
+        0.0,
+        "terminal quaternion weight Q_tq (live like q_q)",
+        0.0,
+        1e9,
+        live=True,
+    ),
+    ParameterSpec(
+        "tension_slack_weight",
+        100.0,
+        "L1 penalty of a tension shortfall [s^2/rad^2]",
+        0.0,
+        1e9,
+        live=True,
     ),
     ParameterSpec("horizon", 50, "prediction horizon N [steps]", 2, 1000),
     ParameterSpec("dt_s", 0.01, "prediction step [s] (whole milliseconds)", 0.001, 1.0),
@@ -101,6 +140,7 @@ PARAMETERS = (
         "for at least this spin about it [rad/s] (0: off)",
         0.0,
         100.0,
+        live=True,
     ),
     ParameterSpec(
         "recovery_momentum_ratio_max",
@@ -110,6 +150,7 @@ PARAMETERS = (
         "1e9: any tumble)",
         1.0e-3,
         1.0e9,
+        live=True,
     ),
     ParameterSpec(
         "integrator",
@@ -123,6 +164,7 @@ PARAMETERS = (
         "how q_w/q_t weigh the rate: momentum (rate across w_ref, reachable spin along it) "
         "or paper (w - w_ref)",
         choices=OBJECTIVES,
+        live=True,
     ),
     ParameterSpec("replan_period_s", 0.1, "re-plan period [s]", 0.001, 10.0),
     ParameterSpec("control_period_s", 0.01, "setpoint period [s]", 0.001, 1.0),
@@ -157,9 +199,16 @@ PARAMETERS = (
         "radius_rate_scale", 1.0, "share of the actuator radius speeds planned", 1e-3, 1.0
     ),
     ParameterSpec(
-        "diagnostics_period_s", 0.1, "diagnostics period, simulated time [s]", 0.001, 10.0
+        "diagnostics_period_s",
+        0.1,
+        "diagnostics period, simulated time [s]",
+        0.001,
+        10.0,
+        live=True,
     ),
 )
+# Applied to the next tick (a re-plan's weights, the recovery supervisor, on/off) without
+# rebuilding the solver: the weights are parameters of the compiled NLP (core.ocp).
 
 
 def controller_config_from_parameters(values: dict) -> ControllerConfig:
@@ -220,7 +269,7 @@ class InertialMorphingMpcNode(Node):
             overrides.append(Parameter("use_sim_time", value=True))
         super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
         try:
-            values = declare_parameters(self, PARAMETERS)
+            values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             config = controller_config_from_parameters(values)
         except InvalidParameterError:
             self.destroy_node()
@@ -269,6 +318,30 @@ class InertialMorphingMpcNode(Node):
             WrenchStamped, names.JUMP_COMMAND, self._on_gait_answer, qos_for(names.JUMP_COMMAND)
         )
         self.get_logger().info("ready")
+
+    def _apply_live(self, values: Mapping[str, ParameterValue]) -> None:
+        """A live parameter change: the controller's weights and scheduler settings.
+
+        The solver is reused (its weights are NLP parameters): a change whose solver
+        would differ (q_q or q_tq made > 0 while the MPC was built without the
+        attitude in its state) is refused.
+        """
+        config = controller_config_from_parameters(dict(values))
+        built = self.controller.config
+        if config.mpc != built.mpc:
+            raise InvalidParameterError(
+                "q_q/q_tq > 0 needs the attitude in the MPC's state, which this MPC was built "
+                "without (q_q = q_tq = 0 at start-up): restart the node with them"
+            )
+        diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
+        if diagnostics_ns % self._control_ns != 0:
+            raise InvalidParameterError(
+                f"diagnostics_period_s must be a multiple of control_period_s "
+                f"({self._control_ns * 1e-9:g} s)"
+            )
+        self.controller.config = config
+        self.controller.set_weights(config.weights)
+        self._diagnostics_ns = diagnostics_ns
 
     def destroy_node(self) -> None:
         """Stop the solver worker with the node."""
@@ -461,6 +534,7 @@ class InertialMorphingMpcNode(Node):
             "setpoint_iyy_kg_m2": s.setpoint_kg_m2[1],
             "setpoint_izz_kg_m2": s.setpoint_kg_m2[2],
             "rejected_messages": sum(rejection_counts(self).values()),
+            **parameter_diagnostics(self),
         }
         values = {
             k: v for k, v in values.items() if not (isinstance(v, float) and not np.isfinite(v))

@@ -83,6 +83,7 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.parameters import (
+    READ_ONLY_NOTE,
     InvalidParameterError,
     ParameterSpec,
     declare_parameters,
@@ -435,8 +436,10 @@ class SimulatorNode(Node):
         """``gravity``: a preset name (zero, moon, mars, earth) or a number [m/s^2]."""
         descriptor = ParameterDescriptor(
             name="gravity",
-            description="gravity: zero, moon, mars, earth, or a value in m/s^2 (string or number)",
+            description="gravity: zero, moon, mars, earth, or a value in m/s^2 (string or number)"
+            + READ_ONLY_NOTE,
             dynamic_typing=True,
+            read_only=True,
         )
         try:
             self.declare_parameter("gravity", "zero", descriptor)

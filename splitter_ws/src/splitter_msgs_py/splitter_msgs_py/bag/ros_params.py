@@ -11,13 +11,15 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from splitter_msgs_py.bag.playback import parse_topic_list
-from splitter_msgs_py.parameters import InvalidParameterError
+from splitter_msgs_py.parameters import READ_ONLY_NOTE, InvalidParameterError
 
 
 def declare_string_list(node: Node, name: str, description: str) -> list[str]:
     """Declare ``name`` (a list of strings, or one comma/space separated string) and read it."""
     descriptor = ParameterDescriptor(
-        name=name, description=description + " (list, or one comma separated string)"
+        name=name,
+        description=description + " (list, or one comma separated string)" + READ_ONLY_NOTE,
+        read_only=True,
     )
     descriptor.dynamic_typing = True
     node.declare_parameter(name, "", descriptor)
@@ -45,7 +47,9 @@ def declare_topic_list(node: Node, name: str, description: str) -> list[str]:
 
 def declare_key_values(node: Node, name: str, description: str) -> dict[str, str]:
     """``KEY=VALUE`` items (a list, or one string separated by ',' or ';')."""
-    descriptor = ParameterDescriptor(name=name, description=description)
+    descriptor = ParameterDescriptor(
+        name=name, description=description + READ_ONLY_NOTE, read_only=True
+    )
     descriptor.dynamic_typing = True
     node.declare_parameter(name, "", descriptor)
     value = node.get_parameter(name).value
