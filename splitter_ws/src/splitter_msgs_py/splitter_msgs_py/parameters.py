@@ -252,6 +252,19 @@ def _refused(reason: str) -> SetParametersResult:
 
 def _on_set(node: Node, state: _NodeParameters, params: list[Parameter]) -> SetParametersResult:
     """Validate a runtime set, apply it live or refuse it with a reason."""
+    result = _check_and_apply(node, state, params)
+    if not result.successful:
+        # rclpy typed the (dynamically typed) descriptor after the refused value before
+        # asking: give it back the type of the value kept (``ros2 param describe``)
+        for p in params:
+            if node.has_parameter(p.name):
+                node.describe_parameter(p.name).type = node.get_parameter(p.name).type_.value
+    return result
+
+
+def _check_and_apply(
+    node: Node, state: _NodeParameters, params: list[Parameter]
+) -> SetParametersResult:
     changes: dict[str, ParameterValue] = {}
     for p in params:
         if p.name == USE_SIM_TIME:

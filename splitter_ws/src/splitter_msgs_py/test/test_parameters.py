@@ -177,6 +177,7 @@ def test_invalid_live_value_refused_with_a_reason(ros_context, name, value, reas
         assert not result.successful
         assert reason in result.reason
         assert node.get_parameter(name).value == before
+        assert node.describe_parameter(name).type == node.get_parameter(name).type_.value
         assert applied == []
         assert parameter_diagnostics(node) == {"parameter_changes": 0}
     finally:
