@@ -20,7 +20,8 @@ export FASTRTPS_DEFAULT_PROFILES_FILE := $(abspath splitter_ws/src/splitter_msgs
 export FASTDDS_DEFAULT_PROFILES_FILE := $(FASTRTPS_DEFAULT_PROFILES_FILE)
 # SUBNET = "use the XML profile as is"; the profile keeps DDS on 127.0.0.1.
 export ROS_AUTOMATIC_DISCOVERY_RANGE := SUBNET
-export ROS_DOMAIN_ID ?= 42
+# No ROS_DOMAIN_ID here: a graph run chooses a domain no other graph on this machine
+# uses unless the caller exports one (README "Networking"); the tests pick their own.
 export MPLBACKEND := Agg
 export PYTHONDONTWRITEBYTECODE := 1
 

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import pytest
 from hypothesis import settings
 
+from splitter_msgs_py.domains import hold_domains
 from splitter_msgs_py.environment import apply_ros_environment
 
 # Property tests draw the same examples on every run (the suite is deterministic, as the
@@ -31,6 +32,9 @@ TEST_DOMAIN_ID = int(
 if not 1 <= TEST_DOMAIN_ID <= 101 - MAX_DOMAIN_OFFSET:
     raise ValueError(f"SPLITTER_TEST_DOMAIN_ID must be in [1, 81], got {TEST_DOMAIN_ID}")
 apply_ros_environment(domain_id=TEST_DOMAIN_ID)
+# Mark the run's domains used (shared locks, held while pytest runs): a graph that
+# chooses its own domain (`splitter run` with no domain named) never lands on them.
+_HELD_DOMAINS = hold_domains(range(TEST_DOMAIN_ID, TEST_DOMAIN_ID + MAX_DOMAIN_OFFSET + 2))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.core.series import RunSeries
-from splitter_bringup.launcher import launch
+from splitter_bringup.launcher import LaunchResult, launch
 from splitter_bringup.run_bag import read_run_series, read_wall_timing
 
 LOG = logging.getLogger(__name__)
@@ -60,11 +60,15 @@ def run_graph(
     timeout_s: float = 1800.0,
     timing: list[WallTiming] | None = None,
     in_process: bool = False,
+    domain_id: int | None = None,
+    results: list[LaunchResult] | None = None,
 ) -> RunSeries:
     """Launch, record and read back one variant; raises :class:`GraphRunError` on failure.
 
     ``timing``, when given, receives the run's :class:`WallTiming` (from the
-    simulator's wall-time figures on /diagnostics).
+    simulator's wall-time figures on /diagnostics); ``results`` the launch's
+    :class:`~splitter_bringup.launcher.LaunchResult` (its ROS domain, foreign
+    publishers). ``domain_id``: None chooses one as the launcher does.
     """
     scenario = load_scenario(scenario_name, variant)
     run_dir = out_dir / scenario.variant
@@ -74,7 +78,12 @@ def run_graph(
         from splitter_bringup.inprocess_launch import launch_in_process
 
         result = launch_in_process(
-            scenario, run_dir, real_time=real_time, timeout_s=timeout_s, on_progress=on_progress
+            scenario,
+            run_dir,
+            real_time=real_time,
+            timeout_s=timeout_s,
+            on_progress=on_progress,
+            domain_id=domain_id,
         )
     else:
         result = launch(
@@ -85,7 +94,10 @@ def run_graph(
             timeout_s=timeout_s,
             quiet=not verbose,
             on_progress=on_progress,
+            domain_id=domain_id,
         )
+    if results is not None:
+        results.append(result)
     if not result.ok or result.bag_dir is None:
         logs = run_dir / "logs"
         raise GraphRunError(

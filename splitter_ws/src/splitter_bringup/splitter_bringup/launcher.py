@@ -17,11 +17,22 @@ the progress of every node of the data path and names a stalled one:
   :attr:`LaunchResult.incidents`) while the rest keeps running: the simulator
   holds the last good joint commands, the allocator the last good setpoint. Only
   the simulator's end, its death, the recorder's death or a stop end the run.
+
+The watchdog also reports publishers on the graph's topics that the launcher did not
+start (``FOREIGN publisher ...``; :attr:`LaunchResult.foreign_publishers`).
+
+Isolation: the graph runs on the ROS domain the user named (``domain_id``, else
+``ROS_DOMAIN_ID``), or else on one no other graph on this machine uses
+(:func:`splitter_msgs_py.domains.choose_domain`), held for the whole run. It is
+logged and written to ``out_dir/domain_id``. Every node is started with
+``SPLITTER_PARENT_PID`` (it dies with the launcher, however the launcher ends:
+:mod:`splitter_msgs_py.lifetime`) and ``SPLITTER_RUN_DIR`` (the run's folder).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import re
 import sys
 import time
@@ -29,7 +40,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from splitter_bringup.core.graph_config import NodeLaunch, graph_nodes, write_parameter_file
+from splitter_bringup.core.foreign_publishers import FOREIGN_PREFIX
+from splitter_bringup.core.graph_config import (
+    NodeLaunch,
+    graph_nodes,
+    with_parameter_attachments,
+    write_parameter_file,
+)
 from splitter_bringup.core.processes import (
     ProcessSpec,
     Supervisor,
@@ -38,13 +55,18 @@ from splitter_bringup.core.processes import (
 )
 from splitter_bringup.core.scenario import Scenario
 from splitter_bringup.core.watchdog import DEFAULT_STALL_TIMEOUT_S, PROGRESS_TOPICS
+from splitter_msgs_py.domains import DomainChoice, choose_domain
 from splitter_msgs_py.environment import ros_environment
+from splitter_msgs_py.lifetime import PARENT_PID_ENV
 
 LOG = logging.getLogger(__name__)
 # [s] after the simulator's last step, time for the recorder to receive what is in flight
 DRAIN_S = 1.5
 _PROGRESS = re.compile(r"t = ([0-9.]+) s")
 _STALLED = re.compile(r"STALLED (\w+): (.*)")
+_FOREIGN = re.compile(rf"{FOREIGN_PREFIX} publisher (\S+) on (\S+): (.*)")
+RUN_DIR_ENV = "SPLITTER_RUN_DIR"  # every node's environment names its run folder
+DOMAIN_FILE = "domain_id"  # in the run folder: the ROS domain the graph ran on
 WATCHDOG = "graph_watchdog"
 FOXGLOVE_BRIDGE = "foxglove_bridge"
 # the simulator steps on after this many stall timeouts only when no watchdog ends the run
@@ -61,6 +83,8 @@ class LaunchResult:
     exit_codes: dict[str, int | None]
     bag_dir: Path | None
     incidents: tuple[str, ...] = ()  # real time: nodes reported dead or stalled
+    domain_id: int | None = None  # the ROS domain the graph ran on
+    foreign_publishers: tuple[str, ...] = ()  # "<node> on <topic>" the graph did not start
 
     @property
     def ok(self) -> bool:
@@ -91,14 +115,60 @@ def launch(
     ``ws://foxglove_host:foxglove_port`` (:mod:`splitter_bringup.foxglove_bridge_node`).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
+    with choose_domain(domain_id) as domain:
+        record_domain(domain, out_dir)
+        return _launch(
+            scenario,
+            out_dir,
+            domain.domain_id,
+            real_time=real_time,
+            rate_factor=rate_factor,
+            record=record,
+            multi_host=multi_host,
+            timeout_s=timeout_s,
+            stall_timeout_s=stall_timeout_s,
+            quiet=quiet,
+            on_progress=on_progress,
+            foxglove_port=foxglove_port,
+            foxglove_host=foxglove_host,
+        )
+
+
+def record_domain(domain: DomainChoice, out_dir: Path) -> None:
+    """Log the run's domain and write it to ``out_dir/domain_id`` (for those who join)."""
+    LOG.info("%s (written to %s)", domain.describe(), out_dir / DOMAIN_FILE)
+    (out_dir / DOMAIN_FILE).write_text(f"{domain.domain_id}\n", encoding="utf-8")
+
+
+def _launch(
+    scenario: Scenario,
+    out_dir: Path,
+    domain_id: int,
+    *,
+    real_time: bool,
+    rate_factor: float,
+    record: bool,
+    multi_host: bool,
+    timeout_s: float | None,
+    stall_timeout_s: float,
+    quiet: bool,
+    on_progress: Callable[[float], None] | None,
+    foxglove_port: int | None,
+    foxglove_host: str,
+) -> LaunchResult:
     bag_dir = out_dir / "bag" if record else None
     env = ros_environment(domain_id=domain_id, multi_host=multi_host)
     env["PYTHONUNBUFFERED"] = "1"
+    env[PARENT_PID_ENV] = str(os.getpid())
+    env[RUN_DIR_ENV] = str(out_dir.resolve())
     nodes = graph_nodes(scenario, real_time=real_time, rate_factor=rate_factor, bag_dir=bag_dir)
     nodes = _with_watchdog(nodes, real_time, stall_timeout_s)
     if foxglove_port is not None:
         nodes = _with_foxglove(nodes, foxglove_host, foxglove_port)
+    nodes = _watchdog_knows(nodes)
+    nodes = with_parameter_attachments(nodes)  # the bag carries every node's parameters
     incidents: list[str] = []
+    foreign: list[str] = []
 
     def on_line(name: str, line: str) -> None:
         match = _PROGRESS.search(line) if name == "simulator" else None
@@ -106,6 +176,11 @@ def launch(
             on_progress(float(match.group(1)))
         if not quiet:
             print(f"[{name}] {line}", file=sys.stderr, flush=True)
+        found = _FOREIGN.search(line) if name == WATCHDOG else None
+        if found:
+            node, topic, reason = found.groups()
+            LOG.warning("a publisher the graph did not start: %s on %s (%s)", node, topic, reason)
+            foreign.append(f"{node} on {topic}")
         stalled = _STALLED.search(line) if name == WATCHDOG else None
         if stalled:
             node, reason = stalled.groups()
@@ -141,7 +216,16 @@ def launch(
         codes = supervisor.stop_all()
     finally:
         restore()
-    return LaunchResult(outcome, codes, bag_dir, tuple(incidents))
+    return LaunchResult(outcome, codes, bag_dir, tuple(incidents), domain_id, tuple(foreign))
+
+
+def _watchdog_knows(nodes: list[NodeLaunch]) -> list[NodeLaunch]:
+    """``nodes`` with the watchdog told every node name of the graph (foreign publishers)."""
+    names = [n.name for n in nodes]
+    return [
+        replace(n, parameters={**n.parameters, "graph_nodes": names}) if n.name == WATCHDOG else n
+        for n in nodes
+    ]
 
 
 def _with_watchdog(

@@ -55,7 +55,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="127.0.0.1",
         help="address the Foxglove server binds (0.0.0.0 in a container with -p PORT:PORT)",
     )
-    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for every node")
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        help="ROS domain of the graph (default: ROS_DOMAIN_ID when set, else one no other "
+        "graph on this machine uses; printed and written to OUT/domain_id)",
+    )
     parser.add_argument(
         "--multi-host",
         action="store_true",
@@ -100,10 +105,13 @@ def main(args: argparse.Namespace) -> int:
         )
     for incident in result.incidents:
         LOG.error("during the run: %s", incident)
+    for foreign in result.foreign_publishers:
+        LOG.warning("a publisher the graph did not start: %s", foreign)
     for name, code in result.exit_codes.items():
         LOG.info("%-22s exit code %s", name, code)
     if result.bag_dir is not None:
         LOG.info("bag: %s", result.bag_dir)
+    LOG.info("ROS domain: %s", result.domain_id)
     if result.outcome == "stopped":
         return 130
     return 0 if result.ok else 1

@@ -61,6 +61,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-animation", action="store_true", help="skip the 3D animation of each variant"
     )
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        help="graph backend: ROS domain of the graph (default: ROS_DOMAIN_ID when set, else "
+        "one no other graph on this machine uses; written to DIR/<variant>/domain_id)",
+    )
 
 
 def _progress_printer(label: str):
@@ -77,16 +83,32 @@ def _progress_printer(label: str):
 
 def _run_variant(
     args: argparse.Namespace, scenario_name: str, variant: str
-) -> tuple[RunSeries, float, float]:
-    """(series, start-up wall time [s], flight wall time [s]) of one variant."""
+) -> tuple[RunSeries, float, float, dict]:
+    """(series, start-up wall time [s], flight wall time [s], graph facts) of one variant.
+
+    Graph facts (graph backend only): the ROS domain it ran on and the publishers on its
+    topics it did not start.
+    """
     if args.backend == "graph" and not args.no_ros:
         from splitter_bringup.graph_run import WallTiming, run_graph
+        from splitter_bringup.launcher import LaunchResult
 
         timing: list[WallTiming] = []
+        results: list[LaunchResult] = []
         series = run_graph(
-            scenario_name, variant, args.out, timing=timing, in_process=args.in_process
+            scenario_name,
+            variant,
+            args.out,
+            timing=timing,
+            in_process=args.in_process,
+            domain_id=args.domain_id,
+            results=results,
         )
-        return series, timing[0].startup_s, timing[0].flight_wall_time_s
+        facts = {
+            "domain_id": results[0].domain_id,
+            "foreign_publishers": len(results[0].foreign_publishers),
+        }
+        return series, timing[0].startup_s, timing[0].flight_wall_time_s, facts
     from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
     from splitter_model.model import RobotModel
     from splitter_mpc.core.controller import MorphingController
@@ -105,7 +127,7 @@ def _run_variant(
         series = run_closed_loop(
             scenario, _progress_printer(variant), model=model, controller=controller
         )
-        return series, flying - started, time.monotonic() - flying
+        return series, flying - started, time.monotonic() - flying, {}
 
 
 def _metrics(series: RunSeries, scenario) -> dict:
@@ -175,7 +197,7 @@ def main(args: argparse.Namespace) -> int:
     for variant in variants:
         started = time.monotonic()
         scenario = load_scenario(args.scenario, variant)
-        series, startup_s, flight_wall_s = _run_variant(args, args.scenario, variant)
+        series, startup_s, flight_wall_s, graph_facts = _run_variant(args, args.scenario, variant)
         wall = time.monotonic() - started
         runs[variant] = series
         series.save_npz(out / f"{variant}.npz")
@@ -187,6 +209,7 @@ def main(args: argparse.Namespace) -> int:
             "flight_wall_time_s": flight_wall_s,  # the flight itself
             "flight_real_time_factor": scenario.duration_s / max(flight_wall_s, 1e-9),
             "controller_enabled": scenario.controller.enabled,
+            **graph_facts,  # graph backend: domain_id, foreign_publishers
             "metrics": {
                 k: {kk: _jsonable(vv) for kk, vv in m.as_dict().items()} for k, m in metrics.items()
             },
