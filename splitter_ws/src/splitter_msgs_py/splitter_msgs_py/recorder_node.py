@@ -11,6 +11,8 @@ middleware's receive timestamp otherwise, which only a message-info callback
 sees). Publish time is the ``header.stamp`` of stamped types, else the log time
 (``publish_time: header``), or the middleware's source timestamp
 (``source_timestamp``, what rosbag2 Jazzy stores).
+``node_parameters`` (the launcher gives every node's parameter file) go into
+the bag as MCAP attachments (:mod:`splitter_msgs_py.bag.node_parameters`).
 SIGINT and SIGTERM finish the bag (summary, metadata.yaml).
 """
 
@@ -31,8 +33,18 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py.bag import definitions
+from splitter_msgs_py.bag.node_parameters import (
+    MEDIA_TYPE,
+    ParameterFileError,
+    attachment_name,
+    parse_parameter_file,
+)
 from splitter_msgs_py.bag.playback import seconds_to_ns, select_topics
-from splitter_msgs_py.bag.ros_params import declare_key_values, declare_topic_list
+from splitter_msgs_py.bag.ros_params import (
+    declare_key_values,
+    declare_string_list,
+    declare_topic_list,
+)
 from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos, type_hash_of
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
@@ -104,6 +116,20 @@ PARAMETERS = (
 )
 
 
+def _parameter_files(texts: list[str]) -> dict[str, str]:
+    """node -> parameter-file text of the ``node_parameters`` items (InvalidParameterError)."""
+    out = {}
+    for text in texts:
+        try:
+            node, _ = parse_parameter_file(text)
+        except ParameterFileError as exc:
+            raise InvalidParameterError(f"parameter 'node_parameters': {exc}") from exc
+        if node in out:
+            raise InvalidParameterError(f"parameter 'node_parameters': node {node!r} twice")
+        out[node] = text.rstrip("\n") + "\n"  # the list item may come stripped
+    return out
+
+
 def default_bag_name() -> str:
     """``rosbag2_YYYY_MM_DD-HH_MM_SS`` as ``ros2 bag record`` names a bag."""
     return time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
@@ -126,6 +152,12 @@ class RecorderNode(Node):
         custom_data = declare_key_values(
             self, "custom_data", "KEY=VALUE pairs stored in the bag's custom_data"
         )
+        node_parameters = declare_string_list(
+            self,
+            "node_parameters",
+            "ROS 2 parameter files (YAML text, one node each) stored in the bag as the MCAP "
+            "attachments params/<node>.yaml",
+        )
         for pattern_name in ("regex", "exclude_regex"):
             try:
                 re.compile(str(p[pattern_name]))
@@ -146,8 +178,11 @@ class RecorderNode(Node):
         self._recording: dict[str, Any] = {}
         self._skipped: set[str] = set()
         output = str(p["output"]) or default_bag_name()
+        parameter_files = _parameter_files(node_parameters)
         self.writer = BagWriter(Path(output), options)
         try:
+            for node, text in parameter_files.items():
+                self.writer.add_attachment(attachment_name(node), text.encode("utf-8"), MEDIA_TYPE)
             steady = Clock(clock_type=ClockType.STEADY_TIME)
             self._discovery_timer = self.create_timer(
                 float(p["discovery_period_s"]), self.discover, clock=steady

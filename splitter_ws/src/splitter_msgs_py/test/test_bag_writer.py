@@ -280,3 +280,44 @@ def test_empty_float64_sequences_decode_with_mcap_ros2_but_not_rosbags(tmp_path:
     assert list(decoded.position) == list(range(25)) and len(decoded.velocity) == 0
     with pytest.raises(SerdeError):
         TYPESTORE.deserialize_cdr(stored.data, "sensor_msgs/msg/JointState")
+
+
+def test_node_parameters_ride_in_the_bag_as_attachments_and_survive_recovery(
+    tmp_path: Path,
+) -> None:
+    from splitter_msgs_py.bag.node_parameters import (
+        MEDIA_TYPE,
+        attachment_name,
+        bag_node_parameters,
+        parameter_file_text,
+    )
+    from splitter_msgs_py.bag.reader import read_attachments
+
+    params = {"q_w": [1.0, 2.0, 3.0], "objective": "momentum", "horizon": 25}
+    text = parameter_file_text("inertial_morphing_mpc", params)
+    messages = sample_messages(300)
+    bag_dir = tmp_path / "with_params"
+    with BagWriter(bag_dir, WriterOptions(chunk_size_bytes=8192)) as bag:
+        bag.add_attachment(attachment_name("inertial_morphing_mpc"), text.encode(), MEDIA_TYPE)
+        for topic, _, t, cdr in messages:
+            if not bag.has_topic(topic):
+                bag.add_topic(topic, names.TOPIC_TYPES[topic], [QosProfile(depth=100)])
+            bag.write(topic, cdr, t, t)
+    assert read_attachments(bag_dir) == {"params/inertial_morphing_mpc.yaml": text.encode()}
+    assert bag_node_parameters(bag_dir) == {"inertial_morphing_mpc": params}
+    with open(bag_dir / "with_params_0.mcap", "rb") as f:
+        (attachment,) = make_reader(f).iter_attachments()
+    assert attachment.media_type == "application/yaml"
+    # rosbag2 readers ignore attachments: every message still reads back
+    assert check_consistency(bag_dir).ok
+    with RosbagsReader(bag_dir) as reader:
+        assert sum(1 for _ in reader.messages()) == len(messages)
+    # a recorder killed mid-run: the recovered bag still carries the parameters
+    os.remove(bag_dir / "metadata.yaml")
+    path = bag_dir / "with_params_0.mcap"
+    path.write_bytes(path.read_bytes()[: int(path.stat().st_size * 0.6)])
+    assert bag_node_parameters(bag_dir) == {"inertial_morphing_mpc": params}
+    report = recover_bag(bag_dir)
+    assert report.files[0].rewritten
+    assert bag_node_parameters(bag_dir) == {"inertial_morphing_mpc": params}
+    assert check_consistency(bag_dir).ok

@@ -8,15 +8,14 @@ overrides, so both ways run the same graph.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from splitter_bringup.core.scenario import Scenario
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
 from splitter_msgs_py import names
+from splitter_msgs_py.bag.node_parameters import parameter_file_text
 
 
 @dataclass(frozen=True)
@@ -37,6 +36,7 @@ def _floats(values) -> list[float]:
     return [float(v) for v in values]
 
 
+RECORDER_NODE = "recorder"
 CONTROLLER_NODES = ("inertial_morphing_mpc", "ik_tether_allocator", "gait_phase_manager")
 STARTUP_WAIT_S = 120.0  # [s] wall: the MPC may compile its solver on a first start
 # [s] wall: lets the nodes' endpoints match each other (e.g. MPC -> recorder) once all
@@ -145,7 +145,7 @@ def graph_nodes(
     if bag_dir is not None:
         nodes.append(
             NodeLaunch(
-                "recorder",
+                RECORDER_NODE,
                 "splitter_msgs_py.recorder_node:main",
                 "splitter_msgs_py.recorder_node:RecorderNode",
                 recorder_parameters(bag_dir),
@@ -182,10 +182,26 @@ def graph_nodes(
     return nodes
 
 
+def with_parameter_attachments(nodes: list[NodeLaunch]) -> list[NodeLaunch]:
+    """``nodes`` with the recorder told to store every other node's parameter file.
+
+    The recorder writes them into the bag as MCAP attachments ``params/<node>.yaml``
+    (:mod:`splitter_msgs_py.bag.node_parameters`), the same text as the run folder's
+    ``params/<node>.yaml``: a bag copied alone still says how its nodes ran. Call it
+    on the final list (after any change to a node's parameters).
+    """
+    files = [parameter_file_text(n.name, n.parameters) for n in nodes if n.name != RECORDER_NODE]
+    return [
+        replace(n, parameters={**n.parameters, "node_parameters": files})
+        if n.name == RECORDER_NODE
+        else n
+        for n in nodes
+    ]
+
+
 def write_parameter_file(node: NodeLaunch, folder: Path) -> Path:
     """Write ``node``'s parameters as a ROS 2 parameter file; its path."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{node.name}.yaml"
-    content = {node.name: {"ros__parameters": dict(node.parameters)}}
-    path.write_text(yaml.safe_dump(content, sort_keys=True), encoding="utf-8")
+    path.write_text(parameter_file_text(node.name, node.parameters), encoding="utf-8")
     return path

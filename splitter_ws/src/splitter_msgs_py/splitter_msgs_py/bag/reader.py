@@ -8,13 +8,19 @@ times; deserialize with ``rclpy.serialization.deserialize_message`` or a
 from __future__ import annotations
 
 import heapq
+import logging
 import re
+import struct
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
+import zstandard
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Attachment
+from mcap.stream_reader import StreamReader
 
 from splitter_msgs_py.bag.metadata import (
     METADATA_FILENAME,
@@ -23,6 +29,7 @@ from splitter_msgs_py.bag.metadata import (
     read_metadata,
 )
 
+_log = logging.getLogger(__name__)
 _FILE_INDEX = re.compile(r"_(\d+)\.mcap$")
 
 
@@ -154,6 +161,43 @@ def read_messages(
         if end_time_ns is not None and msg.log_time_ns >= end_time_ns:
             continue
         yield msg
+
+
+def read_attachments(bag_dir: Path | str) -> dict[str, bytes]:
+    """name -> data of every MCAP attachment in the bag's files (the first of a name wins).
+
+    Found through each file's summary; a file without a usable one (its recorder was
+    killed) is read record by record up to where it is cut, so the attachments
+    written before the cut still come back.
+    """
+    files = mcap_files(bag_dir)
+    if not files:
+        raise MetadataError(f"{bag_dir} holds no .mcap file")
+    out: dict[str, bytes] = {}
+    for path in files:
+        for attachment in _file_attachments(path):
+            out.setdefault(attachment.name, bytes(attachment.data))
+    return out
+
+
+_TORN = (McapError, EOFError, ValueError, KeyError, struct.error, zstandard.ZstdError)
+
+
+def _file_attachments(path: Path) -> list[Attachment]:
+    with open(path, "rb") as f:
+        try:
+            return list(make_reader(f).iter_attachments())
+        except _TORN as exc:
+            _log.warning("%s: no usable summary (%s): reading its records in order", path, exc)
+    found = []
+    with open(path, "rb") as f:
+        try:
+            for record in StreamReader(f).records:
+                if isinstance(record, Attachment):
+                    found.append(record)
+        except _TORN as exc:
+            _log.warning("%s: records end early (%s): attachments up to there", path, exc)
+    return found
 
 
 def topic_types(bag_dir: Path | str) -> dict[str, str]:

@@ -5,8 +5,8 @@ summary section (and possibly cut in the middle of a record) and no
 ``metadata.yaml``. Every record up to the first incomplete one is read
 sequentially (what ``mcap``'s ``NonSeekingReader`` does); a file that ended
 properly is kept as it is, a damaged one is rewritten with the same schemas,
-channels, messages (same times, same order) and ``rosbag2`` record, then a
-summary. ``metadata.yaml`` is rebuilt from what the files hold.
+channels, messages (same times, same order), attachments and ``rosbag2`` record,
+then a summary. ``metadata.yaml`` is rebuilt from what the files hold.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import zstandard
 from mcap.exceptions import McapError
-from mcap.records import Channel, Footer, Header, Message, Metadata, Schema
+from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
@@ -91,6 +91,7 @@ class _Scan:
     channels: dict[int, Channel] = field(default_factory=dict)
     messages: list[Message] = field(default_factory=list)
     rosbag2_records: list[str] = field(default_factory=list)
+    attachments: list[Attachment] = field(default_factory=list)
     complete: bool = False
     error: str = ""
 
@@ -128,6 +129,8 @@ def _scan(path: Path) -> _Scan:
                 scan.messages.append(record)
         elif isinstance(record, Metadata) and record.name == MCAP_METADATA_NAME:
             scan.rosbag2_records.append(record.metadata.get(MCAP_METADATA_KEY, ""))
+        elif isinstance(record, Attachment):
+            scan.attachments.append(record)
         elif isinstance(record, Footer):
             scan.complete = True
     if scan.header is None and not scan.error:
@@ -148,6 +151,8 @@ def _rewrite(path: Path, scan: _Scan, final_record: str) -> None:
         )
         if scan.rosbag2_records:
             writer.add_metadata(MCAP_METADATA_NAME, {MCAP_METADATA_KEY: scan.rosbag2_records[0]})
+        for a in scan.attachments:  # e.g. the nodes' parameters
+            writer.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
         schema_ids = {
             old: writer.register_schema(s.name, s.encoding, s.data)
             for old, s in sorted(scan.schemas.items())

@@ -257,6 +257,17 @@ class BagWriter:
         ):
             f.close_chunk()
 
+    def add_attachment(self, name: str, data: bytes, media_type: str, log_time_ns: int = 0) -> None:
+        """Store a file in the current ``.mcap`` as an MCAP attachment (e.g. parameters).
+
+        rosbag2 ignores attachments; ``mcap list attachments`` / ``mcap get attachment``
+        and :func:`splitter_msgs_py.bag.reader.read_attachments` read them back.
+        """
+        self._check_open()
+        f = self._require_file()
+        f.close_chunk()  # an attachment goes between chunks
+        f.mcap.add_attachment(time.time_ns(), log_time_ns, name, media_type, data)
+
     def flush(self) -> None:
         """Close the open chunk and hand it to the operating system."""
         if self._file is not None:
