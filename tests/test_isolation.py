@@ -120,6 +120,7 @@ def test_two_runs_at_once_with_no_domain_named_never_see_each_other(tmp_path: Pa
         assert stamps == sorted(set(stamps)), name
         assert stamps == solo_imu, name
     assert domains[0] != domains[1]
+    print(f"domains {domains}, {len(solo_imu)} imu messages in each bag, summaries equal")
     held = range(int(os.environ["ROS_DOMAIN_ID"]), int(os.environ["ROS_DOMAIN_ID"]) + 22)
     assert not set(domains) & set(held), "a run chose a domain this test suite uses"
 

@@ -66,10 +66,7 @@ class ForeignPublisherTracker:
                     ours = self._ours.setdefault((topic, node), gid)
                     if ours == gid:
                         continue
-                    reason = (
-                        f"a second publisher named {node} on {topic}: another graph on this "
-                        "ROS domain"
-                    )
+                    reason = "a second publisher of that name: another graph on this ROS domain"
                 self._reported.add((topic, gid))
                 foreign = ForeignPublisher(topic, node, bytes(gid), reason)
                 self.found.append(foreign)
