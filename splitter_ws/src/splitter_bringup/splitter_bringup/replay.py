@@ -112,6 +112,7 @@ class ReplayResult:
     replayed_solves: dict[int, Solve]
     parameters_source: str
     control_period_ns: int
+    parameters_changed_ns: int | None = None  # first live change the recorded MPC reported
 
     @property
     def max_abs_diff_kg_m2(self) -> float:
@@ -130,6 +131,7 @@ class ReplayResult:
             self.replayed_solves,
             tolerance_kg_m2=tolerance_kg_m2,
             control_period_ns=self.control_period_ns,
+            parameters_changed_ns=self.parameters_changed_ns,
         )
 
 
@@ -177,6 +179,7 @@ class _Bag:
     setpoints: dict[int, NDArray[np.float64]]  # tick [ns] -> recorded setpoint
     recorded_solves: dict[int, Solve]
     topics: set[str]  # input topics present
+    parameters_changed_ns: int | None  # the recorded MPC's first live parameter change
 
 
 def _read_bag(bag_dir: Path) -> _Bag:
@@ -214,7 +217,18 @@ def _read_bag(bag_dir: Path) -> _Bag:
             continue  # a tick the recorded MPC did not answer (or no tick at all)
         inputs.append(_Input((stamp, _RANK[topic], order), topic, data))
     inputs.sort(key=lambda i: i.key)
-    return _Bag(inputs, setpoints, _recorded_solves(diagnostics), {i.topic for i in inputs})
+    changed = [
+        t
+        for t, v in diagnostics
+        if isinstance(v.get("parameter_changes"), float) and v["parameter_changes"] > 0
+    ]
+    return _Bag(
+        inputs,
+        setpoints,
+        _recorded_solves(diagnostics),
+        {i.topic for i in inputs},
+        min(changed) if changed else None,
+    )
 
 
 def _recorded_solves(diagnostics: list[tuple[int, dict]]) -> dict[int, Solve]:
@@ -347,6 +361,7 @@ def replay_mpc(
             replayed_solves,
             source,
             control_ns,
+            bag.parameters_changed_ns,
         )
     finally:
         executor.remove_node(mpc)

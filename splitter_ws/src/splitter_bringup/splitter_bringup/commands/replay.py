@@ -69,6 +69,9 @@ def main(args: argparse.Namespace) -> int:
         "tolerance_kg_m2": acc.tolerance_kg_m2,
         "max_abs_diff_kg_m2": acc.max_abs_diff_kg_m2,
         "skipped_ticks": acc.skipped_ticks,
+        "parameters_changed_live_at_s": (
+            None if result.parameters_changed_ns is None else result.parameters_changed_ns * 1e-9
+        ),
         "recorded_timing_failures_s": [t * 1e-9 for t in acc.recorded_timing_failures],
         "replayed_timing_failures_s": [t * 1e-9 for t in acc.replayed_timing_failures],
         "differences_by_cause": {
@@ -84,6 +87,11 @@ def main(args: argparse.Namespace) -> int:
         print(json.dumps(figures, indent=2))
     else:
         _print_text(acc, result.parameters_source)
+        if result.parameters_changed_ns is not None:
+            print(
+                f"the recorded MPC's parameters were changed live by "
+                f"{result.parameters_changed_ns * 1e-9:.3f} s (the bag carries its start-up ones)"
+            )
     return 0 if acc.accounted_for else 1
 
 

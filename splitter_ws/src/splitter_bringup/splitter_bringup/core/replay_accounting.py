@@ -24,6 +24,9 @@ from the replayed node):
 * ``warm_start_after_miss``: both solves usable (or failed alike), after an
   earlier wall-time failure of either run: the solves started from different
   warm starts. Explained.
+* ``parameters_changed_live``: the tick comes after the recorded MPC reported a
+  live parameter change (``parameter_changes`` on its ``/diagnostics``); the bag
+  carries its start-up parameters only. Explained.
 * ``unexplained``: anything else (no wall-time failure before the tick, a solve
   outcome that differs for a reason other than time, or no recorded diagnostics
   for the solve).
@@ -50,8 +53,9 @@ from splitter_mpc.core.solver_worker import (
 RECORDED_TIMING = "recorded_solve_timing"
 REPLAYED_TIMING = "replayed_solve_timing"
 WARM_START = "warm_start_after_miss"
+LIVE_PARAMETERS = "parameters_changed_live"
 UNEXPLAINED = "unexplained"
-EXPLAINED_CAUSES = (RECORDED_TIMING, REPLAYED_TIMING, WARM_START)
+EXPLAINED_CAUSES = (RECORDED_TIMING, REPLAYED_TIMING, WARM_START, LIVE_PARAMETERS)
 _TIMING_STATUSES = (STATUS_DEADLINE_MISSED, STATUS_WORKER_STARTING, STATUS_ABANDONED)
 
 
@@ -136,11 +140,14 @@ def account(
     *,
     tolerance_kg_m2: float,
     control_period_ns: int,
+    parameters_changed_ns: int | None = None,
 ) -> ReplayAccount:
     """Compare the setpoints tick by tick and classify every difference (module doc).
 
     ``recorded_solves`` / ``replayed_solves``: tick [ns] -> the solve made at that
     tick (the recorded ones as far as the bag's diagnostics tell).
+    ``parameters_changed_ns``: when the recorded MPC first reported a live
+    parameter change (None: never).
     """
     if not tolerance_kg_m2 >= 0.0:
         raise ValueError(f"tolerance must be >= 0, got {tolerance_kg_m2}")
@@ -154,6 +161,11 @@ def account(
     differences = []
     for t, diff in zip(stamps.tolist(), diffs.tolist(), strict=True):
         if diff <= tolerance_kg_m2:
+            continue
+        if parameters_changed_ns is not None and t >= parameters_changed_ns:
+            when = f"{parameters_changed_ns * 1e-9:.3f} s"
+            detail = f"the recorded MPC's parameters were changed live by {when}"
+            differences.append(TickDifference(t, diff, LIVE_PARAMETERS, detail))
             continue
         differences.append(
             _classify(
