@@ -82,6 +82,7 @@ from splitter_msgs_py.conversions import (
     wrench_from_msg,
     wrench_to_msg,
 )
+from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.parameters import (
     READ_ONLY_NOTE,
     InvalidParameterError,
@@ -93,12 +94,15 @@ from splitter_msgs_py.parameters import (
 from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_sim.core.actuators import validate_joint_command
 from splitter_sim.core.scene import scene_arrows
 from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
 from splitter_sim.core.stepping import (
+    CommandQueue,
     LockstepWait,
     RealTimePacer,
     check_jump_wrench,
+    check_trajectory_stamp,
     pushing_hemi,
 )
 
@@ -121,6 +125,9 @@ SLACK_WARNING_PERIOD_S = 1.0  # [s] wall: at most one tether-slack warning per p
 BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
 # [ns] commands may not be stamped later than the simulated time: they answer states
 MAX_COMMAND_LEAD_NS = 0
+# [ns] real time: a joint command may be stamped this far ahead (a trajectory point
+# planned over the latency; it waits for its stamp); further ahead it is corrupt
+MAX_TRAJECTORY_LEAD_NS = 2_000_000_000
 _DEFAULT_CONFIG = SimConfig()
 
 PARAMETERS = (
@@ -299,6 +306,22 @@ PARAMETERS = (
         min_value=1e-3,
         max_value=1e5,
     ),
+    ParameterSpec(
+        "knot_blend_s",
+        _DEFAULT_CONFIG.knot_blend_s,
+        "a corner of the joint trajectory whose next point is queued ahead (real time) "
+        "is rounded by a parabolic blend this long (0: off) [s]",
+        min_value=0.0,
+        max_value=1.0,
+    ),
+    ParameterSpec(
+        "command_extrapolation_s",
+        _DEFAULT_CONFIG.command_extrapolation_s,
+        "a joint command's velocity is followed this long past its stamp when no newer "
+        "point arrives, then its position is held (real time: cover a late point) [s]",
+        min_value=0.0,
+        max_value=10.0,
+    ),
 )
 
 
@@ -338,6 +361,8 @@ _FIELD_PARAMETERS = {
     "leg_damping_n_s_m": "leg_damping_n_s_m",
     "leg_tangential_damping_n_s_m": "leg_tangential_damping_n_s_m",
     "leg_force_max_n": "leg_force_max_n",
+    "command_extrapolation_s": "command_extrapolation_s",
+    "knot_blend_s": "knot_blend_s",
     "gravity_m_s2": "gravity",
 }
 
@@ -379,7 +404,14 @@ class SimulatorNode(Node):
         self.lockstep = LockstepWait(LOCKSTEP_TOPICS, self._timeout_s)
         self._has_publisher = PublisherPresence(self)
         self._stamps = StampGate(MAX_COMMAND_LEAD_NS)
+        self._applied_joint_stamp = 0  # [ns] stamp of the joint command point in effect
+        self._queue = CommandQueue()  # joint commands stamped ahead, applied at their stamps
+        self._late_joint_commands = 0  # real time: arrived after their stamp
+        self._backlog_drops = 0  # real time: times the simulator fell behind the wall clock
+        self._behind_s = 0.0  # [s] simulated time it was behind, summed over the drops
         self._slack_events = 0
+        self._tension_min_n = math.inf  # [N] lowest tether tension of any step so far
+        self._latency = InputLatency()  # commands: simulated time at arrival - stamp
         self._was_slack = False
         self._slack_warned_at = -math.inf  # [s] wall time of the last slack warning
         self._last_state: SimState | None = None
@@ -474,6 +506,8 @@ class SimulatorNode(Node):
                 leg_damping_n_s_m=float(values["leg_damping_n_s_m"]),
                 leg_tangential_damping_n_s_m=float(values["leg_tangential_damping_n_s_m"]),
                 leg_force_max_n=float(values["leg_force_max_n"]),
+                command_extrapolation_s=float(values["command_extrapolation_s"]),
+                knot_blend_s=float(values["knot_blend_s"]),
             )
             xyzw = Rotation.from_euler(
                 "xyz", values["initial_orientation_euler_deg"], degrees=True
@@ -490,6 +524,23 @@ class SimulatorNode(Node):
             raise _named(exc, _FIELD_PARAMETERS) from exc
 
     # --- commands ----------------------------------------------------------------------
+    def _checked_trajectory_stamp(self, msg) -> int | None:
+        """Real time: the stamp of a joint command point if it may be used, else None."""
+        now = self._sim.time_ns
+        try:
+            stamp = checked_stamp_from_msg(msg.header.stamp)
+            check_trajectory_stamp(stamp, self._applied_joint_stamp, now, MAX_TRAJECTORY_LEAD_NS)
+        except ValueError as exc:  # MessageValidationError too
+            warn_throttled(
+                self,
+                "joint_commands",
+                f"rejected {names.JOINT_COMMANDS} at simulated t = {now * 1e-9:.3f} s: {exc}; "
+                "dropped, the trajectory in force stays",
+            )
+            return None
+        self._latency.record("joint_commands", stamp, now)
+        return stamp
+
     def _checked_stamp(self, topic: str, key: str, msg) -> int | None:
         """The command's stamp [ns] if it may be used, else None (warned and counted).
 
@@ -508,15 +559,29 @@ class SimulatorNode(Node):
             )
             return None
         self._stamps.accept(topic, stamp)
+        self._latency.record(key, stamp, self._sim.time_ns)
         return stamp
 
     def _on_joint_commands(self, msg: JointState) -> None:
-        stamp = self._checked_stamp(names.JOINT_COMMANDS, "joint_commands", msg)
+        if self._mode == "real_time":
+            stamp = self._checked_trajectory_stamp(msg)
+        else:
+            stamp = self._checked_stamp(names.JOINT_COMMANDS, "joint_commands", msg)
         if stamp is None:
             return
         try:
             sample = joint_state_from_msg(msg)
-            self._sim.command_joints(sample.position, sample.velocity)
+            now = self._sim.time_ns
+            if stamp > now:  # real time: a trajectory point ahead, followed at its stamp
+                validate_joint_command(
+                    self._sim.joint_limits, sample.position, sample.velocity, names.JOINT_NAMES
+                )
+                self._queue.push(stamp, (sample.position, sample.velocity))
+            else:
+                self._late_joint_commands += stamp < now
+                self._queue.drop_from(stamp)  # a later plan: the points queued are void
+                self._sim.command_joints(sample.position, sample.velocity, stamp_ns=stamp)
+                self._applied_joint_stamp = stamp
         except ValueError as exc:  # MessageValidationError is a ValueError
             warn_throttled(
                 self, "joint_commands", f"rejected joint command at {stamp * 1e-9:.3f} s: {exc}"
@@ -619,7 +684,7 @@ class SimulatorNode(Node):
                     return
             if t % self._control_ns == 0 and not self._tick_answered(t):
                 return
-            self._sim.step()
+            self._step()
             if time.monotonic() > budget_end:
                 return
 
@@ -650,16 +715,33 @@ class SimulatorNode(Node):
         for _ in range(steps):
             if self.finished.done():
                 return
-            self._sim.step()
+            self._step()
             self._publish_state(self._sim.time_ns)
             self._end_reached(self._sim.time_ns)
         if dropped and not self.finished.done():
+            behind_s = (self._pacer.due_ns(now) - self._sim.time_ns) * 1e-9
+            self._backlog_drops += 1
+            self._behind_s += behind_s
             self.get_logger().warning(
-                f"real time: {(self._pacer.due_ns(now) - self._sim.time_ns) * 1e-9:.3f} s "
-                f"behind at rate_factor {self._rate_factor:g}; dropping the backlog",
+                f"real time: {behind_s:.3f} s behind at rate_factor {self._rate_factor:g}; "
+                f"pacing from here (every step is still taken; {self._backlog_drops} times "
+                f"behind, {self._behind_s:.3f} s in all)",
                 throttle_duration_sec=5.0,
             )
             self._pacer.restart(now, self._sim.time_ns)
+
+    def _step(self) -> None:
+        """One simulator step, after applying the queued command points now due."""
+        if self._queue:
+            due = self._queue.due(self._sim.time_ns)
+            if due is not None:
+                stamp, (position, velocity) = due
+                self._sim.command_joints(position, velocity, stamp_ns=stamp)
+                self._applied_joint_stamp = stamp
+            upcoming = self._queue.peek()
+            if upcoming is not None:
+                self._sim.preview_next_point(upcoming[0], upcoming[1][1])
+        self._sim.step()
 
     def _end_reached(self, t: int) -> bool:
         if not self._duration_ns or t < self._duration_ns:
@@ -748,6 +830,7 @@ class SimulatorNode(Node):
         self._last_state = state
         for publisher, msg in msgs:
             publisher.publish(msg)
+        self._tension_min_n = min(self._tension_min_n, state.tether_tension_n)
         if state.tether_slack and not self._was_slack:
             self._slack_events += 1
             # throttled here: rclpy's throttle looks up the caller's source line first
@@ -790,6 +873,7 @@ class SimulatorNode(Node):
             "tether_tension_n": state.tether_tension_n,
             "tether_slack": bool(state.tether_slack),
             "slack_events": self._slack_events,
+            "tether_tension_min_n": self._tension_min_n,
             "hemi_a_in_contact": bool(state.in_contact[0]),
             "hemi_b_in_contact": bool(state.in_contact[1]),
             "hemi_a_contact_normal_force_n": float(state.contact_force_n[0, 2]),
@@ -802,6 +886,11 @@ class SimulatorNode(Node):
             "rejected_joint_commands": rejected.get("joint_commands", 0),
             "rejected_jump_commands": rejected.get("jump_command", 0),
             "lockstep_timeouts": self.lockstep.timeouts,
+            **self._latency.values(),
+            "late_joint_commands": self._late_joint_commands,
+            "queued_joint_commands": len(self._queue),
+            "real_time_backlog_drops": self._backlog_drops,
+            "real_time_behind_s": self._behind_s,
             "unpublished_states": self._publish_failures,
             "finished": final,
         }

@@ -17,6 +17,8 @@ the limits, so it arrives exactly, at rest.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -25,6 +27,12 @@ from splitter_model.actuators import N_JOINTS, ActuatorLimits
 # A command's velocity feed-forward extrapolates its position target for at most
 # this long; a stale command then holds position (no drift into a limit).
 COMMAND_EXTRAPOLATION_S = 0.02  # [s] two control periods of 10 ms
+# A point that arrives after its stamp finds the servos on the previous trajectory, off
+# the new one in position by (v_old - v_new) x lateness; that offset is blended out over
+# this many times the lateness (at least LATE_BLEND_MIN_S) instead of being closed at
+# the servo's full acceleration. The velocity switches at once, as on a point on time.
+LATE_BLEND_FACTOR = 2.0  # [-]
+LATE_BLEND_MIN_S = 0.04  # [s]
 ARRIVAL_TOLERANCE = 1e-12  # [rad or m] / [rad/s or m/s]: snap to the target below this
 
 
@@ -146,13 +154,14 @@ def command_target(
     velocity: NDArray[np.float64],
     age_s: float,
     limits: ActuatorLimits,
+    extrapolation_s: float = COMMAND_EXTRAPOLATION_S,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Target (position, velocity) of a command ``age_s`` old: extrapolated, then held."""
     if not velocity.any():
         return position, velocity
-    horizon = min(max(age_s, 0.0), COMMAND_EXTRAPOLATION_S)
+    horizon = min(max(age_s, 0.0), extrapolation_s)
     target = np.clip(position + velocity * horizon, limits.position_min, limits.position_max)
-    moving = (age_s < COMMAND_EXTRAPOLATION_S) & (target > limits.position_min)
+    moving = (age_s < extrapolation_s) & (target > limits.position_min)
     moving &= target < limits.position_max
     return target, np.where(moving, velocity, 0.0)
 
@@ -182,3 +191,89 @@ def snap_arrived(
     q[arrived] = q_target[arrived]
     qd[arrived] = 0.0
     return True
+
+
+@dataclass(frozen=True)
+class LateCommandBlend:
+    """The position offset from a late point's trajectory to the servos' one, fading out.
+
+    At ``start_ns`` the servos follow the previous command's trajectory (position
+    ``q_old``) while the late point's is at ``q_new``: the reference becomes the new
+    trajectory plus ``q_old - q_new``, which a smooth step (cubic Hermite, zero slope
+    at both ends) takes to 0 over ``duration_s``. The position stays continuous, the
+    velocity changes as on a point that comes on time, and the blend adds at most
+    ``1.5 dq / T`` of velocity and ``6 dq / T^2`` of acceleration.
+    """
+
+    start_ns: int
+    offset_q: NDArray[np.float64]
+    duration_s: float
+
+    @classmethod
+    def between(
+        cls,
+        old: tuple[NDArray[np.float64], NDArray[np.float64]],
+        new: tuple[NDArray[np.float64], NDArray[np.float64]],
+        start_ns: int,
+        late_ns: int,
+    ) -> LateCommandBlend | None:
+        """The blend from trajectory ``old`` to ``new`` (each (position, velocity) now)."""
+        dq = old[0] - new[0]
+        if not dq.any():
+            return None
+        duration = max(LATE_BLEND_FACTOR * late_ns * 1e-9, LATE_BLEND_MIN_S)
+        return cls(int(start_ns), dq, duration)
+
+    def active(self, t_ns: int) -> bool:
+        """Whether the offset is still blending out at ``t_ns``."""
+        return (t_ns - self.start_ns) * 1e-9 < self.duration_s
+
+    def apply(
+        self,
+        t_ns: int,
+        position: NDArray[np.float64],
+        velocity: NDArray[np.float64],
+        limits: ActuatorLimits,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The blended reference at ``t_ns`` from the new trajectory's (position, velocity)."""
+        T = self.duration_s
+        s = min(max((t_ns - self.start_ns) * 1e-9 / T, 0.0), 1.0)
+        h00 = 2.0 * s**3 - 3.0 * s**2 + 1.0
+        dh00 = (6.0 * s**2 - 6.0 * s) / T
+        q = position + self.offset_q * h00
+        v = velocity + self.offset_q * dh00
+        q = np.clip(q, limits.position_min, limits.position_max)
+        v = np.clip(v, -limits.speed_max, limits.speed_max)
+        return q, v
+
+
+def corner_blend(
+    position: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    velocity_step: NDArray[np.float64],
+    since_start_s: float,
+    duration_s: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A piecewise-linear reference rounded at a corner by a parabolic blend.
+
+    The corner (velocity ``v0`` before, ``v0 + velocity_step`` after) is at the middle
+    of a blend of ``duration_s``; ``since_start_s`` counts from the blend's start (so
+    in ``[0, duration_s / 2)`` the reference is still on the segment before the
+    corner, after it in ``[-duration_s / 2, 0)`` measured from the blend's end, as
+    negative values). Before the corner the reference is the incoming line plus
+    ``dv s^2 / (2 T)``; after it the outgoing line plus ``dv (T/2 - s')^2 / (2 T)``
+    with ``s'`` the time since the corner: position and velocity are continuous and
+    the acceleration is ``dv / T`` throughout the blend.
+    """
+    T = duration_s
+    s = since_start_s
+    if s >= 0.0:  # before the corner, on the incoming segment
+        return (
+            position + velocity_step * (s * s / (2.0 * T)),
+            velocity + velocity_step * (s / T),
+        )
+    r = -s  # time left to the blend's end, after the corner
+    return (
+        position + velocity_step * (r * r / (2.0 * T)),
+        velocity - velocity_step * (r / T),
+    )

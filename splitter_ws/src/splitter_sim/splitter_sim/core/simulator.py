@@ -103,6 +103,14 @@ class SimConfig:
     leg_damping_n_s_m: float = 200.0  # [N s/m] 0.95 m/s down saturates the force cap
     leg_tangential_damping_n_s_m: float = 20.0  # [N s/m] hip impedance, feet planted
     leg_force_max_n: float = 190.0  # [N] below the limbs' 196 N dynamic limit (paper VII.C)
+    # [s] a joint command's velocity is followed this long past its stamp when no newer
+    # point comes (then its position is held). Lockstep: a point every control period.
+    # Real time: long enough for a late point (actuators.command_target).
+    command_extrapolation_s: float = actuators.COMMAND_EXTRAPOLATION_S
+    # [s] a corner of the piecewise-linear joint trajectory whose next point is known in
+    # time (queued ahead: real time) is rounded by a parabolic blend this long, so the
+    # servos see a reference with continuous velocity; 0: corners followed as they come
+    knot_blend_s: float = 0.0
 
     def __post_init__(self) -> None:
         _positive("dt_s", self.dt_s)
@@ -127,6 +135,8 @@ class SimConfig:
         _non_negative("leg_damping_n_s_m", self.leg_damping_n_s_m)
         _non_negative("leg_tangential_damping_n_s_m", self.leg_tangential_damping_n_s_m)
         _positive("leg_force_max_n", self.leg_force_max_n)
+        _non_negative("command_extrapolation_s", self.command_extrapolation_s)
+        _non_negative("knot_blend_s", self.knot_blend_s)
 
     @property
     def legs(self) -> LegImpedance:
@@ -298,6 +308,10 @@ class Simulator:
         self._cmd_qd = np.zeros(N_JOINTS)
         self._cmd_t_ns = 0
         self._cmd_static = True  # the command has no velocity: the target is the command
+        self._blend: actuators.LateCommandBlend | None = None  # a late point, blended in
+        self._next_point: tuple[int, NDArray[np.float64]] | None = None  # (stamp, velocity)
+        # velocity step of the rounded corner just passed
+        self._corner_dv: NDArray[np.float64] | None = None
         self._settled = True  # joints at rest on a resting target: no servo work
         self._zero_joints = np.zeros(N_JOINTS)
         self._radii_cache: NDArray[np.float64] | None = None
@@ -366,17 +380,47 @@ class Simulator:
         """Position, speed and acceleration limits of the 25 actuators."""
         return self._limits
 
-    def command_joints(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
+    def command_joints(
+        self,
+        position: ArrayLike,
+        velocity: ArrayLike | None = None,
+        stamp_ns: int | None = None,
+    ) -> None:
         """Set the joint targets (25, ``names.JOINT_NAMES`` order); ValueError when invalid.
 
-        An invalid command leaves the previous one in force.
+        The command is a point of a trajectory: ``position`` at ``stamp_ns`` (default:
+        now), moving at ``velocity``. The servo follows ``position + velocity (t -
+        stamp)`` from the stamp on (:func:`.actuators.command_target`; past
+        ``SimConfig.command_extrapolation_s`` the position is held). A command that
+        arrives after its stamp is followed where its trajectory is now, and the
+        offset from the trajectory the servos were on is blended out
+        (:class:`.actuators.LateCommandBlend`). A stamp later than the simulated time
+        is refused. An invalid command leaves the previous one in force.
         """
         from splitter_msgs_py.names import JOINT_NAMES
 
+        stamp = self._t_ns if stamp_ns is None else int(stamp_ns)
+        if stamp > self._t_ns:
+            raise ValueError(
+                f"joint command stamped {stamp} ns is later than the simulated time {self._t_ns} ns"
+            )
         q, qd = actuators.validate_joint_command(self._limits, position, velocity, JOINT_NAMES)
-        self._cmd_q, self._cmd_qd, self._cmd_t_ns = q, qd, self._t_ns
+        late_ns = self._t_ns - stamp
+        if late_ns > 0:  # the servos are on the old trajectory: blend onto the new one
+            old = self._servo_target()
+            self._cmd_q, self._cmd_qd, self._cmd_t_ns = q, qd, stamp
+            self._blend = None
+            self._blend = actuators.LateCommandBlend.between(
+                old, self._servo_target(), self._t_ns, late_ns
+            )
+        else:  # a point on time continues its plan: a blend in progress goes on fading
+            nxt = self._next_point
+            rounded = nxt is not None and nxt[0] == stamp and late_ns == 0
+            self._corner_dv = qd - self._cmd_qd if rounded else None
+            self._cmd_q, self._cmd_qd, self._cmd_t_ns = q, qd, stamp
+        self._next_point = None
         self._settled = False
-        self._cmd_static = not qd.any()
+        self._cmd_static = not qd.any() and self._blend is None and self._corner_dv is None
         if self._kernels is not None and self._cmd_static:
             self._kernels.ws[kernels.WS_TARGET] = q
             self._kernels.ws[kernels.WS_TARGET_V] = 0.0
@@ -395,6 +439,58 @@ class Simulator:
             raise ValueError(f"jump hemi must be 'a', 'b' or 'auto', got {hemi!r}")
         self._jump_force = (float(f[0]), float(f[1]), float(f[2]))
         self._jump_hemi = hemi
+
+    def preview_next_point(self, stamp_ns: int, velocity: ArrayLike) -> None:
+        """The next joint command point, known ahead (stamped ``stamp_ns``, ``velocity``).
+
+        With ``SimConfig.knot_blend_s`` > 0 the corner between the command in force and
+        that point is rounded (:func:`.actuators.corner_blend`).
+        """
+        self._next_point = (int(stamp_ns), np.asarray(velocity, dtype=float))
+        if self.config.knot_blend_s > 0.0:
+            self._settled = False
+            self._cmd_static = False
+
+    def _servo_target(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Where the joint command's trajectory is now (position, velocity), any blend in."""
+        age_s = (self._t_ns - self._cmd_t_ns) * 1e-9
+        target = actuators.command_target(
+            self._cmd_q, self._cmd_qd, age_s, self._limits, self.config.command_extrapolation_s
+        )
+        tau = self.config.knot_blend_s
+        if tau > 0.0:
+            target = self._rounded_corners(target, age_s, tau)
+        blend = self._blend
+        if blend is None:
+            return target
+        if not blend.active(self._t_ns):
+            self._blend = None
+            return target
+        return blend.apply(self._t_ns, *target, self._limits)
+
+    def _rounded_corners(
+        self,
+        target: tuple[NDArray[np.float64], NDArray[np.float64]],
+        age_s: float,
+        tau: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``target`` with the corners around now rounded by parabolic blends of ``tau``."""
+        q, v = target
+        half = 0.5 * tau
+        if self._corner_dv is not None:  # just past a rounded corner
+            if age_s < half:
+                q, v = actuators.corner_blend(q, v, self._corner_dv, age_s - half, tau)
+            else:
+                self._corner_dv = None
+        nxt = self._next_point
+        if nxt is not None:
+            before = (nxt[0] - self._t_ns) * 1e-9  # [s] to the next corner
+            if 0.0 < before <= half:
+                q, v = actuators.corner_blend(q, v, nxt[1] - self._cmd_qd, half - before, tau)
+        lim = self._limits
+        return np.clip(q, lim.position_min, lim.position_max), np.clip(
+            v, -lim.speed_max, lim.speed_max
+        )
 
     # --- integration -------------------------------------------------------------
     def _mass_heights(self, s: list[float], shape: Shape) -> list[float] | None:
@@ -506,8 +602,7 @@ class Simulator:
             qdd = self._zero_joints
             moving = False
         else:
-            age_s = (self._t_ns - self._cmd_t_ns) * 1e-9
-            target, target_v = actuators.command_target(self._cmd_q, self._cmd_qd, age_s, lim)
+            target, target_v = self._servo_target()
             qdd = actuators.servo_acceleration(q, qd, target, target_v, lim, self._dt)
             moving = bool(qd.any() or qdd.any())
         s = self._s
@@ -567,10 +662,7 @@ class Simulator:
         begin = kern.out_begin
         if not self._settled:
             if not self._cmd_static:
-                age_s = (self._t_ns - self._cmd_t_ns) * 1e-9
-                target, target_v = actuators.command_target(
-                    self._cmd_q, self._cmd_qd, age_s, self._limits
-                )
+                target, target_v = self._servo_target()
                 ws[kernels.WS_TARGET] = target
                 ws[kernels.WS_TARGET_V] = target_v
             kern.begin()

@@ -119,3 +119,64 @@ class RealTimePacer:
         if steps > REAL_TIME_MAX_CATCH_UP:
             return REAL_TIME_MAX_CATCH_UP, True
         return int(steps), False
+
+
+@dataclass
+class CommandQueue:
+    """Joint commands stamped ahead of the simulated time, each applied at its stamp.
+
+    The points of a stamped joint trajectory (position at the stamp, velocity until
+    the next point): a point that arrives before its stamp waits here. A new point
+    replaces the queued ones stamped at or after it (the sender re-planned from
+    there), as a joint trajectory controller replaces the rest of its trajectory.
+    """
+
+    _pending: list[tuple[int, object]] = field(default_factory=list, init=False)
+
+    def __len__(self) -> int:
+        return len(self._pending)
+
+    def push(self, stamp_ns: int, command: object) -> None:
+        """Queue ``command`` for ``stamp_ns``; queued ones from that stamp on are dropped."""
+        self.drop_from(stamp_ns)
+        self._pending.append((int(stamp_ns), command))
+
+    def drop_from(self, stamp_ns: int) -> None:
+        """Forget the points stamped at or after ``stamp_ns`` (a newer plan starts there)."""
+        if self._pending and self._pending[-1][0] >= stamp_ns:
+            self._pending = [p for p in self._pending if p[0] < stamp_ns]
+
+    def peek(self) -> tuple[int, object] | None:
+        """The earliest queued point (stamp, command), or None."""
+        return self._pending[0] if self._pending else None
+
+    def due(self, t_ns: int) -> tuple[int, object] | None:
+        """The newest point stamped at or before ``t_ns`` (removed with the older ones)."""
+        pending = self._pending
+        if not pending or pending[0][0] > t_ns:
+            return None
+        k = 0
+        while k < len(pending) and pending[k][0] <= t_ns:
+            k += 1
+        point = pending[k - 1]
+        del pending[:k]
+        return point
+
+
+def check_trajectory_stamp(stamp_ns: int, applied_ns: int, now_ns: int, max_lead_ns: int) -> None:
+    """Raise ``ValueError`` unless a trajectory point stamped ``stamp_ns`` may be used.
+
+    A point may re-plan what is queued (an earlier stamp than the last point
+    received), but not what is already followed: it must not be earlier than the
+    point in effect (``applied_ns``), nor more than ``max_lead_ns`` ahead of ``now_ns``.
+    """
+    if stamp_ns < applied_ns:
+        raise ValueError(
+            f"header.stamp: {stamp_ns * 1e-9:.9f} s is earlier than the point in effect "
+            f"({applied_ns * 1e-9:.9f} s)"
+        )
+    if stamp_ns > now_ns + max_lead_ns:
+        raise ValueError(
+            f"header.stamp: {stamp_ns * 1e-9:.9f} s is more than {max_lead_ns * 1e-9:g} s "
+            f"ahead of the simulated time {now_ns * 1e-9:.9f} s"
+        )
