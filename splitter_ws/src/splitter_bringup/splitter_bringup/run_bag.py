@@ -126,3 +126,37 @@ def read_wall_timing(bag_dir: Path | str) -> tuple[float, float]:
     if not latest:
         raise BagSeriesError(f"{bag_dir}: no simulator wall-time report on /diagnostics")
     return float(latest["run_start_unix_s"]), float(latest["flight_wall_time_s"])
+
+
+# What a run's nodes report about time on /diagnostics (their last report of each key):
+# input latency, commands that came after their stamps, the allocator's command lead,
+# the simulator falling behind the wall clock, and the tether.
+TIMING_KEY_PREFIXES = ("latency_",)
+TIMING_KEYS = (
+    "late_joint_commands",
+    "real_time_backlog_drops",
+    "real_time_behind_s",
+    "command_lead_ms",
+    "slack_events",
+    "tether_tension_min_n",
+    "lockstep_timeouts",
+)
+
+
+def read_timing_report(bag_dir: Path | str) -> dict[str, dict[str, float]]:
+    """Per node (its /diagnostics status name), the last value of each timing key.
+
+    See :data:`TIMING_KEYS`; latencies are ``latency_<input>_{mean,max,last}_ms`` and
+    ``latency_<input>_count`` (:class:`splitter_msgs_py.core.latency.InputLatency`).
+    """
+    report: dict[str, dict[str, float]] = {}
+    for m in read_messages(bag_dir, topics=[names.DIAGNOSTICS]):
+        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[names.DIAGNOSTICS])
+        for status in cv.diagnostics_from_msg(msg):
+            for key, value in status.values.items():
+                if key in TIMING_KEYS or key.startswith(TIMING_KEY_PREFIXES):
+                    try:
+                        report.setdefault(status.name, {})[key] = float(value)
+                    except ValueError:
+                        continue  # not a number: not a timing figure
+    return report

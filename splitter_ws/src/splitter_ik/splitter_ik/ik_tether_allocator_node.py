@@ -57,6 +57,7 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
+from splitter_ik.core.command_lead import CommandLead, predicted_angular_velocity
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import names
@@ -72,6 +73,7 @@ from splitter_msgs_py.conversions import (
     principal_inertia_from_msg,
     vector3_from_msg,
 )
+from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
@@ -92,6 +94,7 @@ SETPOINT_LIMIT_FACTOR = 10.0
 # [rad/s] an IMU body rate above this is corrupt (the robot spins at ~1 rad/s, its
 # joints at 84 rad/s; a gyro saturates far below): rejected.
 MAX_BODY_RATE_RAD_S = 1.0e3
+LEAD_HISTORY_NS = 1_000_000_000  # [ns] planned inertia kept for the rate prediction
 
 PARAMETERS = (
     ParameterSpec(
@@ -176,6 +179,39 @@ PARAMETERS = (
         max_value=100.0,
         live=True,
     ),
+    ParameterSpec(
+        "command_lead",
+        False,
+        "stamp commands ahead of their inputs by the latency measured, as points of a "
+        "trajectory the simulator follows at their stamps (real time; lockstep needs "
+        "each tick answered with its own stamp)",
+    ),
+    ParameterSpec(
+        "command_lead_margin_s",
+        0.002,
+        "real time: commands are stamped ahead of their input by the largest latency "
+        "measured plus this margin for their way to the simulator, in whole control "
+        "periods (lockstep: latency 0, no lead) [s]",
+        min_value=0.0,
+        max_value=1.0,
+        live=True,
+    ),
+    ParameterSpec(
+        "command_lead_window_s",
+        2.0,
+        "the command lead plans for the largest input latency of this much simulated time [s]",
+        min_value=0.0,
+        max_value=100.0,
+        live=True,
+    ),
+    ParameterSpec(
+        "command_lead_max_s",
+        0.5,
+        "longest command lead: a larger latency is followed late, not planned for [s]",
+        min_value=0.0,
+        max_value=5.0,
+        live=True,
+    ),
 )
 # The live ones are read by the allocator on every tick (the speed and acceleration
 # shares size its limiters when it is built: read-only).
@@ -213,6 +249,14 @@ class IkTetherAllocatorNode(Node):
             self.destroy_node()
             raise
         self._period_ns = round(self.config.control_period_s * 1e9)
+        self._lead = CommandLead(self._period_ns)
+        self._lead_enabled = bool(values["command_lead"])
+        self._apply_lead(values)
+        self._latency = InputLatency()  # simulated clock at use - stamp, per input
+        self._last_command_t: int | None = None  # stamp of the last command answering a tick
+        # [kg m^2] inertia the commands plan at their stamps (the last second), to predict
+        # the body rate at a command stamped ahead of its input
+        self._planned_inertia: dict[int, np.ndarray] = {}
         self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
         self._init_from_measured = bool(values["initialize_from_measured_inertia"])
         self._fallback_enabled = bool(values["answer_state_without_setpoints"])
@@ -278,6 +322,13 @@ class IkTetherAllocatorNode(Node):
         if self.allocator is not None:
             self.allocator.config = config
         self._diagnostics_ns = round(float(values["diagnostics_period_s"]) * 1e9)
+        self._apply_lead(values)
+
+    def _apply_lead(self, values: Mapping[str, ParameterValue]) -> None:
+        lead = self._lead
+        lead.margin_ns = round(float(values["command_lead_margin_s"]) * 1e9)
+        lead.window_ns = round(float(values["command_lead_window_s"]) * 1e9)
+        lead.max_lead_ns = round(float(values["command_lead_max_s"]) * 1e9)
 
     def _checked_radii(self, radii: list[float]) -> np.ndarray:
         r = np.array(radii, dtype=float)
@@ -427,17 +478,53 @@ class IkTetherAllocatorNode(Node):
         self._answer(t_ns, self._hold_setpoint())
 
     def _answer(self, t_ns: int, setpoint: np.ndarray) -> None:
+        """Answer the input tick ``t_ns``: one command per control period it covers.
+
+        The commands are stamped ahead of the input by the latency measured
+        (:class:`~splitter_ik.core.command_lead.CommandLead`; lockstep: none).
+        """
+        now = self._clock_ns()
+        self._latency.record("inertia_setpoint", t_ns, now)
+        if self._lead_enabled:
+            self._lead.record(t_ns, now)
+            stamps = self._lead.output_stamps(t_ns, self._last_command_t)
+        else:
+            stamps = [t_ns]
+        for stamp in stamps:
+            if not self._command(stamp, setpoint, t_ns):
+                return
+        self._last_answered_t = t_ns
+        self._maybe_publish_diagnostics(t_ns)
+
+    def _rate_at(self, t_ns: int, input_t_ns: int) -> np.ndarray | None:
+        """The last body rate measured, predicted for a command stamped ``t_ns``.
+
+        Lockstep (a command stamped with its input) and before any lead: as measured.
+        """
+        w, allocator = self._w, self.allocator
+        if w is None or t_ns == input_t_ns or allocator is None or allocator.radii_m is None:
+            return w
+        measured_t = self._imu_t_ns or 0
+        then = self._planned_inertia.get(measured_t - measured_t % self._period_ns)
+        if then is None:
+            return w
+        return predicted_angular_velocity(w, then, principal_inertia(self.model, allocator.radii_m))
+
+    def _command(self, t_ns: int, setpoint: np.ndarray, setpoint_t_ns: int) -> bool:
+        """Allocate and publish the command stamped ``t_ns``; False when refused."""
         allocator = self._ensure_allocator()
         try:
             # stamps were checked (never before the last tick) and the setpoint validated
-            allocation = allocator.allocate(t_ns, setpoint, self._w)
+            allocation = allocator.allocate(
+                t_ns, setpoint, self._rate_at(t_ns, setpoint_t_ns), setpoint_t_ns
+            )
             command = joint_state_to_msg(t_ns, allocation.joint_position, allocation.joint_velocity)
         except ValueError as exc:  # MessageValidationError too: nothing sent, state kept
             self.get_logger().error(
                 f"t = {t_ns * 1e-9:.3f} s: tick not answered, the allocator refused it: {exc}",
                 throttle_duration_sec=2.0,
             )
-            return
+            return False
         if allocation.saturated:
             warn_throttled(
                 self,
@@ -447,9 +534,14 @@ class IkTetherAllocatorNode(Node):
             )
         self._commands_pub.publish(command)
         self.last_allocation = allocation
-        self._last_answered_t = t_ns
+        self._last_command_t = t_ns
+        if self._lead.lead_ns > 0:
+            planned = self._planned_inertia
+            planned[t_ns] = allocation.achieved_inertia_kg_m2
+            for old in [t for t in planned if t < t_ns - LEAD_HISTORY_NS]:
+                del planned[old]
         self._account(allocation)
-        self._maybe_publish_diagnostics(t_ns)
+        return True
 
     def _account(self, a: Allocation) -> None:
         w = self._window
@@ -491,6 +583,8 @@ class IkTetherAllocatorNode(Node):
             "max_limb_joint_speed_rad_s": w.max_joint_speed,
             "max_tether_speed_m_s": w.max_tether_speed,
             "tension_margin_setting_n": self.config.tension_margin_n,
+            "command_lead_ms": self._lead.lead_ns * 1e-6,
+            **self._latency.values(),
         }
         for key, count in sorted(rejection_counts(self).items()):
             values[f"total_warnings_{key}"] = count

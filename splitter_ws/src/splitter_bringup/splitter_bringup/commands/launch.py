@@ -111,7 +111,22 @@ def main(args: argparse.Namespace) -> int:
         LOG.info("%-22s exit code %s", name, code)
     if result.bag_dir is not None:
         LOG.info("bag: %s", result.bag_dir)
+        _log_timing(result.bag_dir)
     LOG.info("ROS domain: %s", result.domain_id)
     if result.outcome == "stopped":
         return 130
     return 0 if result.ok else 1
+
+
+def _log_timing(bag_dir: Path) -> None:
+    """The nodes' last timing report (latency, late commands, tether) from the bag."""
+    from splitter_bringup.core.bag_series import BagSeriesError
+    from splitter_bringup.run_bag import read_timing_report
+
+    try:
+        report = read_timing_report(bag_dir)
+    except (BagSeriesError, OSError, ValueError) as exc:
+        LOG.warning("no timing report from the bag: %s", exc)
+        return
+    for node, values in sorted(report.items()):
+        LOG.info("%s: %s", node, ", ".join(f"{k} {v:.4g}" for k, v in sorted(values.items())))

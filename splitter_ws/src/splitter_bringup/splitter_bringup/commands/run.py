@@ -108,6 +108,11 @@ def _run_variant(
             "domain_id": results[0].domain_id,
             "foreign_publishers": len(results[0].foreign_publishers),
         }
+        if results[0].bag_dir is not None:
+            from splitter_bringup.run_bag import read_timing_report
+
+            # input latency per node, late commands, the tether: their last reports
+            facts["timing"] = read_timing_report(results[0].bag_dir)
         return series, timing[0].startup_s, timing[0].flight_wall_time_s, facts
     from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
     from splitter_model.model import RobotModel

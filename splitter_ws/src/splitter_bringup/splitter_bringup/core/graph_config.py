@@ -42,6 +42,12 @@ STARTUP_WAIT_S = 120.0  # [s] wall: the MPC may compile its solver on a first st
 # [s] wall: lets the nodes' endpoints match each other (e.g. MPC -> recorder) once all
 # are in the graph; the simulator only sees its own matches
 STARTUP_SETTLE_S = 0.5
+# [s] real time: a joint command's velocity is followed this long past its stamp while
+# the next point is late (lockstep sends one every control period: the default 20 ms)
+REAL_TIME_COMMAND_EXTRAPOLATION_S = 0.25
+# [s] real time: the joint trajectory's corners, queued ahead, are rounded over one
+# control period (the servos then see a reference with continuous velocity)
+REAL_TIME_KNOT_BLEND_S = 0.01
 
 
 def simulator_parameters(
@@ -62,6 +68,14 @@ def simulator_parameters(
         "startup_settle_s": STARTUP_SETTLE_S,
         "mode": "real_time" if real_time else "lockstep",
         "rate_factor": float(rate_factor),
+        **(
+            {
+                "command_extrapolation_s": REAL_TIME_COMMAND_EXTRAPOLATION_S,
+                "knot_blend_s": REAL_TIME_KNOT_BLEND_S,
+            }
+            if real_time
+            else {}
+        ),
         "duration_s": float(scenario.duration_s),
         "dt_s": float(scenario.sim_dt_s),
         "gravity": str(scenario.gravity_m_s2),
@@ -124,9 +138,18 @@ def gait_parameters(scenario: Scenario) -> dict:
     }
 
 
-def allocator_parameters(scenario: Scenario) -> dict:
-    """IK / tether allocator parameters."""
-    return {"use_sim_time": True, "initial_radii_m": _floats(scenario.initial_radii_m)}
+def allocator_parameters(scenario: Scenario, real_time: bool = False) -> dict:
+    """IK / tether allocator parameters.
+
+    In real time its commands are stamped ahead of their inputs by the latency it
+    measures (the simulator follows them at their stamps); in lockstep each tick is
+    answered with its own stamp.
+    """
+    return {
+        "use_sim_time": True,
+        "initial_radii_m": _floats(scenario.initial_radii_m),
+        "command_lead": bool(real_time),
+    }
 
 
 def recorder_parameters(bag_dir: Path, topics: tuple[str, ...] = RECORDED_TOPICS) -> dict:
@@ -162,7 +185,7 @@ def graph_nodes(
             "ik_tether_allocator",
             "splitter_ik.ik_tether_allocator_node:main",
             "splitter_ik.ik_tether_allocator_node:IkTetherAllocatorNode",
-            allocator_parameters(scenario),
+            allocator_parameters(scenario, real_time),
         ),
         NodeLaunch(
             "gait_phase_manager",

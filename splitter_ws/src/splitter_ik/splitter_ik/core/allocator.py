@@ -259,8 +259,14 @@ class TetherLimbAllocator:
         t_ns: int,
         inertia_setpoint_kg_m2: ArrayLike,
         angular_velocity_rad_s: ArrayLike | None = None,
+        setpoint_stamp_ns: int | None = None,
     ) -> Allocation:
-        """Joint commands answering the setpoint stamped ``t_ns``.
+        """Joint commands stamped ``t_ns`` answering the setpoint stamped ``setpoint_stamp_ns``.
+
+        ``setpoint_stamp_ns`` (default ``t_ns``) places the setpoint in the history the
+        reel's reference velocity is taken from: commands stamped ahead of their
+        setpoint (real time, :mod:`.command_lead`), or several from one setpoint, see
+        the setpoints' own velocity.
 
         ``angular_velocity_rad_s`` (body frame) enables the taut-tether limit and the
         tension report. Raises ``ValueError`` for a non-finite setpoint or angular
@@ -290,7 +296,9 @@ class TetherLimbAllocator:
             radius_x_prev = float(start.drive[0]) / 2.0
             taut_cap = taut_brake = math.inf
             lower_brake = None
-            tether_velocity = self._tether_reference_velocity(t_ns, float(target[0]))
+            tether_velocity = self._tether_reference_velocity(
+                t_ns if setpoint_stamp_ns is None else int(setpoint_stamp_ns), float(target[0])
+            )
             # toward a shorter tether, or still moving in (braking is the same physics)
             reeling_in = bool(
                 target[0] < start.drive[0] or start.drive_rate[0] < 0.0 or tether_velocity < 0.0
