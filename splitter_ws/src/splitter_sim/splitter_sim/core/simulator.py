@@ -59,6 +59,13 @@ HEMI_LABELS = ("a", "b")
 ALL_MASSES = tuple(range(10))
 
 
+# [N] The tension is computed from the accelerations of a hemi's five masses (9 kg). In
+# free fall without spin, where it is zero (DESIGN.md section 3: nothing pulls the hemis
+# apart), it scatters about 0 by up to 0.07 N (lunar_jumping's flights, measured): such
+# a value is zero, not a tether pushing. Below this it counts as slack.
+TETHER_SLACK_TOLERANCE_N = 0.1
+
+
 def _positive(name: str, value: float) -> None:
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f"SimConfig.{name} must be finite and > 0, got {value!r}")
@@ -219,7 +226,7 @@ class SimState:
     kinetic_energy_j: float  # total: COM + rotation + morphing motion [J]
     angular_momentum_world: NDArray[np.float64]  # (3,) about the COM [kg m^2/s]
     tether_tension_n: float  # [N] > 0 taut
-    tether_slack: bool  # tension <= 0
+    tether_slack: bool  # tension below -TETHER_SLACK_TOLERANCE_N: the tether would push
     actuator_power_w: float  # rate of actuator work on the system [W]
     # Extensions beyond the shared API:
     actuator_work_j: float = 0.0  # actuator work since t = 0 [J]
@@ -831,7 +838,7 @@ class Simulator:
             kinetic_energy_j=kinetic,
             angular_momentum_world=_readonly(R @ np.array(s[10:13])),
             tether_tension_n=tension,
-            tether_slack=tension <= 0.0,
+            tether_slack=tension < -TETHER_SLACK_TOLERANCE_N,
             actuator_power_w=float(out["actuator_power"]),
             actuator_work_j=float(s[13]),
             contact_torque_n_m=_readonly(torque_hemi),
