@@ -57,9 +57,14 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
-from splitter_ik.core.command_lead import CommandLead, predicted_angular_velocity
+from splitter_ik.core.command_lead import CommandLead
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
-from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+from splitter_model.model import (
+    PAPER_INITIAL_RADII_M,
+    RobotModel,
+    angular_velocity_after_morphing,
+    principal_inertia,
+)
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MAX_STAMP_LEAD_NS,
@@ -508,7 +513,9 @@ class IkTetherAllocatorNode(Node):
         then = self._planned_inertia.get(measured_t - measured_t % self._period_ns)
         if then is None:
             return w
-        return predicted_angular_velocity(w, then, principal_inertia(self.model, allocator.radii_m))
+        return angular_velocity_after_morphing(
+            w, then, principal_inertia(self.model, allocator.radii_m)
+        )
 
     def _command(self, t_ns: int, setpoint: np.ndarray, setpoint_t_ns: int) -> bool:
         """Allocate and publish the command stamped ``t_ns``; False when refused."""

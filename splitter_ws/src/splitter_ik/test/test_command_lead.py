@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_ik.core.command_lead import CommandLead, predicted_angular_velocity
+from splitter_ik.core.command_lead import CommandLead
+from splitter_model.model import angular_velocity_after_morphing
 
 MS = 1_000_000  # [ns]
 PERIOD = 10 * MS
@@ -78,6 +79,6 @@ def test_predicted_rate_follows_the_planned_inertia() -> None:
     w = np.array([0.1, 1.2, -0.3])
     then = np.array([50.0, 150.0, 160.0])
     later = np.array([50.0, 165.0, 176.0])  # paying out: Iyy, Izz grow
-    predicted = predicted_angular_velocity(w, then, later)
+    predicted = angular_velocity_after_morphing(w, then, later)
     np.testing.assert_allclose(predicted * later, w * then)  # each w_i I_i kept
     assert abs(predicted[1]) < abs(w[1])

@@ -162,6 +162,26 @@ class RobotModel:
         return self.joint_speed_max_rad_s * self.tether_spool_radius_m
 
 
+def angular_velocity_after_morphing(
+    angular_velocity_rad_s: ArrayLike,
+    inertia_before_kg_m2: ArrayLike,
+    inertia_after_kg_m2: ArrayLike,
+) -> NDArray[np.float64]:
+    """Body rate [rad/s] after a short change of principal inertia, momentum kept.
+
+    In flight the angular momentum is conserved; over a short morph (tens of ms)
+    each principal component ``w_i I_i`` nearly is (the gyroscopic coupling turns it
+    by ``|w| dt``): ``w_i' = w_i I_i / I_i'``. Used to predict the rate a command
+    stamped ahead of its input will meet.
+    """
+    w = np.asarray(angular_velocity_rad_s, dtype=float)
+    return (
+        w
+        * np.asarray(inertia_before_kg_m2, dtype=float)
+        / np.asarray(inertia_after_kg_m2, dtype=float)
+    )
+
+
 def principal_inertia(model: RobotModel, radii_m: ArrayLike) -> NDArray[np.float64]:
     """(Ixx, Iyy, Izz) [kg m^2] of the symmetric ten-mass model, paper eq. (2).
 

@@ -39,7 +39,7 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
-from splitter_model.model import RobotModel
+from splitter_model.model import RobotModel, angular_velocity_after_morphing
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES, MpcWeights
@@ -76,6 +76,13 @@ MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates
 PARAMETERS = (
     ParameterSpec(
         "enabled", True, "run the MPC; false holds the nominal inertia (open loop)", live=True
+    ),
+    ParameterSpec(
+        "plan_from_setpoints",
+        False,
+        "real time: plan from the inertia the setpoints already sent will reach (the "
+        "allocator stamps them ahead by the latency), with the body rate momentum gives "
+        "there, not from the inertia measured now, which lags them",
     ),
     ParameterSpec(
         "q_w", [100.0, 100.0, 100.0], "angular velocity weights Q_w", 0.0, 1e9, length=3, live=True
@@ -296,6 +303,8 @@ class InertialMorphingMpcNode(Node):
         self._stamps = StampGate()  # no stamp backwards per topic, none far ahead
         self._has_publisher = PublisherPresence(self)
         self.published = 0
+        self._plan_from_setpoints = bool(values["plan_from_setpoints"])
+        self._last_setpoint: np.ndarray | None = None  # [kg m^2] the last one sent
 
         self._setpoint_pub = self.create_publisher(
             Vector3Stamped, names.INERTIA_SETPOINT, qos_for(names.INERTIA_SETPOINT)
@@ -485,14 +494,18 @@ class InertialMorphingMpcNode(Node):
             return
         imu = self._imu[t_ns]
         inertia = self._inertia[t_ns]
+        w = imu.angular_velocity_rad_s
+        if self._plan_from_setpoints and self._last_setpoint is not None:
+            # the commands stamped ahead reach the last setpoint before this tick's does
+            w = angular_velocity_after_morphing(w, inertia, self._last_setpoint)
+            inertia = self._last_setpoint
         try:
-            setpoint = self.controller.on_state(
-                t_ns, imu.angular_velocity_rad_s, imu.orientation_wxyz, inertia, self._phase
-            )
+            setpoint = self.controller.on_state(t_ns, w, imu.orientation_wxyz, inertia, self._phase)
         except ValueError as exc:  # inputs checked above; keep running regardless
             self._reject("state", exc)
             return
         self._setpoint_pub.publish(vector3_to_msg(t_ns, setpoint, names.BASE_FRAME))
+        self._last_setpoint = np.asarray(setpoint, dtype=float).copy()
         self.published += 1
         self._last_answered = t_ns
         self._drop_before(t_ns + 1)

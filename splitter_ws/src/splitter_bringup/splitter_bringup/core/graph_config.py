@@ -99,7 +99,7 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
     """
     c = scenario.controller
     extra = (
-        {"wait_for_solver_start": False}
+        {"wait_for_solver_start": False, "plan_from_setpoints": True}
         if real_time
         else {"max_solve_time_s": LOCKSTEP_MAX_TIME_S, "wait_for_solver_start": True}
     )

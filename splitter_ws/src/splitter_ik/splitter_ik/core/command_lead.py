@@ -31,9 +31,6 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
-import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 
 @dataclass
 class CommandLead:
@@ -90,24 +87,3 @@ class CommandLead:
             return [target] if last_output_ns is None or target >= last_output_ns else []
         first = last_output_ns + self.period_ns
         return list(range(first, target + 1, self.period_ns))
-
-
-def predicted_angular_velocity(
-    angular_velocity_rad_s: ArrayLike,
-    inertia_then_kg_m2: ArrayLike,
-    inertia_at_stamp_kg_m2: ArrayLike,
-) -> NDArray[np.float64]:
-    """The body rate [rad/s] at a command's stamp, from the rate measured at its input.
-
-    In flight the angular momentum is conserved, and over the lead (tens of ms) each
-    principal component ``w_i I_i`` nearly is: the rate follows the inertia the
-    allocator has planned between the input (``inertia_then``) and the command's stamp.
-    A reel paying out lowers the spin across the tether, and with it the tension the
-    spin can hold: the taut limit is planned with the rate the command will meet.
-    """
-    w = np.asarray(angular_velocity_rad_s, dtype=float)
-    return (
-        w
-        * np.asarray(inertia_then_kg_m2, dtype=float)
-        / np.asarray(inertia_at_stamp_kg_m2, dtype=float)
-    )
