@@ -396,6 +396,7 @@ class SimulatorNode(Node):
 
         self.finished = Future()
         self._started = False
+        self._first_answer_since: float | None = None  # [s] real time: waiting for tick 0
         self._start_wall = time.monotonic()
         self._run_wall_start: float | None = None
         self._run_start_unix_s = 0.0  # [s] wall clock (epoch) of the first step
@@ -708,8 +709,24 @@ class SimulatorNode(Node):
             if not self._ready_to_start():
                 return
             self._started = True
-            self._pacer.restart(now, self._sim.time_ns)
+            self._first_answer_since = now
             self._publish_state(self._sim.time_ns)
+            return
+        if self._first_answer_since is not None:
+            # The wall clock starts once the controllers answered the first state (as a
+            # robot starts once its computer is up): a launch thrust stamped 0 then acts
+            # at 0, not a latency later. At most lockstep_timeout_s is waited.
+            t = self._sim.time_ns
+            waiting = self.lockstep.waiting_for(t, self._has_publisher)
+            if waiting and now - self._first_answer_since < self.lockstep.timeout_s:
+                return
+            if waiting:
+                self.get_logger().warning(
+                    f"real time: no answer to the first state on {', '.join(waiting)} after "
+                    f"{now - self._first_answer_since:.1f} s; the clock starts without it"
+                )
+            self._first_answer_since = None
+            self._pacer.restart(now, t)
             return
         steps, dropped = self._pacer.steps_due(now, self._sim.time_ns)
         for _ in range(steps):
