@@ -33,12 +33,15 @@ def test_garbage_messages_are_garbage() -> None:
 
 @pytest.mark.slow
 def test_garbage_on_every_input_topic_kills_no_node_and_the_flight_converges(tmp_path) -> None:
+    suite_domain = os.environ["ROS_DOMAIN_ID"]
     report = run_with_garbage(
         load_scenario("spin_stabilization"),
         tmp_path,
         garbage_s=10.0,
-        domain_id=int(os.environ["ROS_DOMAIN_ID"]) + 14,
+        domain_id=int(suite_domain) + 14,
     )
+    # the process's domain is given back (later tests rely on it)
+    assert os.environ["ROS_DOMAIN_ID"] == suite_domain
     assert report.launch.outcome == "ended" and report.deaths == [], report.launch
     assert report.garbage_s >= 9.0 and report.garbage_sent > 2000
     assert report.non_finite == ()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -239,7 +240,11 @@ def run_with_garbage(
     seed: int = 0,
     on_progress: Callable[[float], None] | None = None,
 ) -> GarbageReport:
-    """Launch ``scenario`` and publish garbage for ``garbage_s`` once ``start_after_s`` flew."""
+    """Launch ``scenario`` and publish garbage for ``garbage_s`` once ``start_after_s`` flew.
+
+    The process's ``ROS_DOMAIN_ID`` is ``domain_id`` during the run and restored after it.
+    """
+    previous_domain = os.environ.get("ROS_DOMAIN_ID")
     apply_ros_environment(domain_id=domain_id)
     context = Context()
     rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
@@ -282,6 +287,10 @@ def run_with_garbage(
         for node in (*made, watcher):
             node.destroy_node()
         rclpy.try_shutdown(context=context)
+        if previous_domain is None:
+            os.environ.pop("ROS_DOMAIN_ID", None)
+        else:
+            os.environ["ROS_DOMAIN_ID"] = previous_domain
     end = window["end"] if not math.isnan(window["end"]) else time.monotonic()
     last = [w for t, w in watch.last_w if t >= watch.last_w[-1][0] - 1.0] if watch.last_w else []
     return GarbageReport(
