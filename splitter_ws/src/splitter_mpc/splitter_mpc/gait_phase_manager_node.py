@@ -81,6 +81,7 @@ from splitter_msgs_py.conversions import (
     wrench_from_msg,
     wrench_to_msg,
 )
+from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.parameters import (
     READ_ONLY_NOTE,
     InvalidParameterError,
@@ -269,6 +270,7 @@ class GaitPhaseManagerNode(Node):
             TICK_INPUTS + ((names.INERTIA,) if config.needs_principal_inertia else ()),
         )
         self._ticks_answered = 0
+        self._latency = InputLatency()  # a tick's state: simulated clock when used - stamp
         self._stale_ticks = 0
         self._last_output: GaitOutput | None = None
         self._last_change: tuple[int, str] = (0, "")  # (stamp [ns], reason) of the last change
@@ -465,6 +467,7 @@ class GaitPhaseManagerNode(Node):
     # -- the tick ------------------------------------------------------------------------
     def _answer_tick(self, t_ns: int, inputs: dict[str, object | None]) -> None:
         self._ticks_answered += 1
+        self._latency.record("state", t_ns, self._clock_ns())
         if any(sample is None for sample in inputs.values()):
             self._stale_ticks += 1
         samples = self.ticks.samples(inputs)  # a rejected input: its topic's last good one
@@ -537,6 +540,7 @@ class GaitPhaseManagerNode(Node):
             "ticks_answered": self._ticks_answered,
             "ticks_with_rejected_input": self._stale_ticks,
             "rejected_messages": rejected,
+            **self._latency.values(),
             **parameter_diagnostics(self),
         }
         if output is None:

@@ -57,6 +57,7 @@ from splitter_msgs_py.conversions import (
     twist_from_msg,
     vector3_to_msg,
 )
+from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
@@ -305,6 +306,7 @@ class InertialMorphingMpcNode(Node):
         self.published = 0
         self._plan_from_setpoints = bool(values["plan_from_setpoints"])
         self._last_setpoint: np.ndarray | None = None  # [kg m^2] the last one sent
+        self._latency = InputLatency()  # a tick's state: simulated clock when used - stamp
 
         self._setpoint_pub = self.create_publisher(
             Vector3Stamped, names.INERTIA_SETPOINT, qos_for(names.INERTIA_SETPOINT)
@@ -494,6 +496,7 @@ class InertialMorphingMpcNode(Node):
             return
         imu = self._imu[t_ns]
         inertia = self._inertia[t_ns]
+        self._latency.record("state", t_ns, self._clock_ns())
         w = imu.angular_velocity_rad_s
         if self._plan_from_setpoints and self._last_setpoint is not None:
             # the commands stamped ahead reach the last setpoint before this tick's does
@@ -547,6 +550,7 @@ class InertialMorphingMpcNode(Node):
             "setpoint_iyy_kg_m2": s.setpoint_kg_m2[1],
             "setpoint_izz_kg_m2": s.setpoint_kg_m2[2],
             "rejected_messages": sum(rejection_counts(self).values()),
+            **self._latency.values(),
             **parameter_diagnostics(self),
         }
         values = {
