@@ -26,6 +26,7 @@ from splitter_bringup.core.scenario import load_scenario
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead
 from splitter_ik.core.projection import project_inertia
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel, angular_velocity_after_morphing
 from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
@@ -70,7 +71,7 @@ def _fly(stamped: bool) -> dict[str, float]:
                     state.velocity_m_s,
                     q,
                     state.angular_velocity_rad_s,
-                    float(state.joint_position[24]) / 2.0,
+                    float(state.joint_position[TETHER_INDEX]) / 2.0,
                     state.contact_force_n[:, 2],
                     state.principal_inertia_kg_m2,
                 )

@@ -59,6 +59,7 @@ from sensor_msgs.msg import Imu, JointState
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import (
     PAPER_INITIAL_RADII_M,
     RobotModel,
@@ -561,8 +562,10 @@ class IkTetherAllocatorNode(Node):
             w.max_saturation = max(w.max_saturation, saturation)
         if math.isfinite(a.tension_margin_n):
             w.min_margin = min(w.min_margin, a.tension_margin_n)
-        w.max_joint_speed = max(w.max_joint_speed, float(np.max(np.abs(a.joint_velocity[:24]))))
-        w.max_tether_speed = max(w.max_tether_speed, abs(float(a.joint_velocity[24])))
+        w.max_joint_speed = max(
+            w.max_joint_speed, float(np.max(np.abs(a.joint_velocity[:TETHER_INDEX])))
+        )
+        w.max_tether_speed = max(w.max_tether_speed, abs(float(a.joint_velocity[TETHER_INDEX])))
 
     def _maybe_publish_diagnostics(self, t_ns: int) -> None:
         last = self._last_diagnostics_t
@@ -605,7 +608,7 @@ class IkTetherAllocatorNode(Node):
                     "r_x_m": float(a.radii_m[0]),
                     "r_y_m": float(a.radii_m[1]),
                     "r_z_m": float(a.radii_m[2]),
-                    "tether_length_m": float(a.joint_position[24]),
+                    "tether_length_m": float(a.joint_position[TETHER_INDEX]),
                 }
             )
             if math.isfinite(a.tension_n):

@@ -9,7 +9,7 @@ import pytest
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.tether import hemi_mass_kg
-from splitter_model.actuators import actuator_limits
+from splitter_model.actuators import TETHER_INDEX, actuator_limits
 from splitter_model.kinematics import joint_positions_from_radii, radii_from_joint_positions
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 
@@ -17,7 +17,7 @@ MODEL = RobotModel()
 DT = 0.01
 PERIOD_NS = 10_000_000
 LIMB = slice(0, 24)
-TETHER = 24
+TETHER = TETHER_INDEX
 
 
 def _random_walk_setpoints(seed: int, n: int) -> np.ndarray:

@@ -16,6 +16,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.ik_tether_allocator_node import IkTetherAllocatorNode
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import radii_from_joint_positions
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
@@ -117,7 +118,7 @@ def test_setpoints_answered_with_their_stamp_bad_ones_rejected(ros_context) -> N
         for k in bad:
             dq = samples[k + 1].position - samples[k].position
             np.testing.assert_allclose(samples[k].velocity, dq / 0.01, atol=1e-9)
-            assert samples[k].velocity[24] < 0.0
+            assert samples[k].velocity[TETHER_INDEX] < 0.0
         # diagnostics at 0, 0.1, 0.2 s of simulated time
         _spin(executor, lambda: len(probe.diagnostics) == 3)
         diag_stamps = [conv.stamp_from_msg(m.header.stamp) for m in probe.diagnostics]

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_sim.core import actuators
@@ -15,7 +16,7 @@ from splitter_sim.core.stepping import CommandQueue, check_trajectory_stamp
 
 MODEL = RobotModel()
 MS = 1_000_000  # [ns]
-TETHER = 24
+TETHER = TETHER_INDEX
 
 
 def _sim(**config) -> Simulator:

@@ -14,6 +14,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
@@ -192,7 +193,7 @@ def test_lockstep_waits_for_the_tick_command_and_times_out_with_a_reason(graph) 
     assert probe.diagnostics()[-1]["lockstep_timeouts"] == 1
     # The commands were applied: the joints moved toward the target.
     last = conv.joint_state_from_msg(probe.messages[names.JOINT_STATES][-1])
-    assert last.position[24] < 5.6 - 0.01
+    assert last.position[TETHER_INDEX] < 5.6 - 0.01
 
 
 def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(graph) -> None:
@@ -205,7 +206,7 @@ def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(gra
     bad_names = conv.joint_state_to_msg(0, good)
     bad_names.name[0] = "hemi_c_y_pos_hip_abduction"
     too_far = good.copy()
-    too_far[24] = 7.5  # [m] beyond the 6 m of tether
+    too_far[TETHER_INDEX] = 7.5  # [m] beyond the 6 m of tether
     probe.joint_pub.publish(conv.joint_state_to_msg(0, good))
     nan_msg = conv.joint_state_to_msg(0, good)
     nan_msg.position[3] = math.nan  # conversions refuse NaN, so forge it in the message
@@ -223,8 +224,11 @@ def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(gra
     # The good command stayed in force: the tether reels toward 5.4 m, never toward 7.5 m.
     for msg in probe.messages[names.JOINT_STATES]:
         sample = conv.joint_state_from_msg(msg)  # raises on NaN
-        assert 5.4 - 1e-9 <= sample.position[24] <= 5.6 + 1e-9
-    assert conv.joint_state_from_msg(probe.messages[names.JOINT_STATES][-1]).position[24] < 5.59
+        assert 5.4 - 1e-9 <= sample.position[TETHER_INDEX] <= 5.6 + 1e-9
+    assert (
+        conv.joint_state_from_msg(probe.messages[names.JOINT_STATES][-1]).position[TETHER_INDEX]
+        < 5.59
+    )
     for msg in probe.messages[names.IMU]:
         conv.imu_from_msg(msg)
     for msg in probe.messages[names.ODOM]:

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_model.actuators import actuator_limits
+from splitter_model.actuators import TETHER_INDEX, actuator_limits
 from splitter_model.kinematics import (
     joint_positions_from_radii,
     limb_offsets_from_joint_positions,
@@ -66,7 +66,7 @@ def test_servo_reaches_the_full_speed_on_a_long_move() -> None:
     for _ in range(400):
         qdd = actuators.servo_acceleration(q, qd, target, np.zeros(25), LIMITS, DT)
         q, qd = actuators.advance(q, qd, qdd, DT)
-        top = max(top, abs(qd[24]))
+        top = max(top, abs(qd[TETHER_INDEX]))
     assert top == pytest.approx(MODEL.tether_speed_max_m_s, rel=1e-12)
 
 
@@ -103,7 +103,7 @@ def test_invalid_commands_raise_naming_the_joint_and_keep_the_last_good(
     with pytest.raises(ValueError, match=message):
         sim.command_joints(bad)
     with pytest.raises(ValueError, match="25 values"):
-        sim.command_joints(good[:24])
+        sim.command_joints(good[:TETHER_INDEX])
     with pytest.raises(ValueError, match="velocity"):
         sim.command_joints(good, np.full(25, 1e3))
     for _ in range(800):
@@ -122,7 +122,7 @@ def test_shape_matches_the_shared_kinematics_and_its_derivatives(seed: int) -> N
     kin = ShapeKinematics(MODEL)
     shape = kin.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
     geometric = lumped_mass_positions(
-        [q[24] / 2.0, 0.0, 0.0], limb_offsets_from_joint_positions(MODEL, q)
+        [q[TETHER_INDEX] / 2.0, 0.0, 0.0], limb_offsets_from_joint_positions(MODEL, q)
     )
     com = center_of_mass(MODEL.lumped_masses_kg, geometric)
     np.testing.assert_allclose(shape.positions(), geometric - com, atol=1e-14)

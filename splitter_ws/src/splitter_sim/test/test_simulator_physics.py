@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import GRAVITY_PRESETS, RobotModel
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
@@ -99,7 +100,7 @@ def test_reel_power_is_tension_times_reel_in_speed() -> None:
     for _ in range(300):
         sim.step()
         s = sim.state()
-        reel_speed = -s.joint_velocity[24]  # [m/s] > 0 reeling in
+        reel_speed = -s.joint_velocity[TETHER_INDEX]  # [m/s] > 0 reeling in
         assert s.actuator_power_w == pytest.approx(s.tether_tension_n * reel_speed, abs=1e-9)
         checked += reel_speed > 0.5
     assert checked > 100

@@ -20,6 +20,7 @@ import numpy as np
 
 from splitter_ik.core.actuator_sizing import JumpAssumptions, SizingReport, size_actuators
 from splitter_ik.core.run_check import LimitCheck, check_run
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 
 LOG = logging.getLogger("splitter.actuator")
@@ -129,7 +130,8 @@ def _check(args: argparse.Namespace) -> int:
 
         t = np.asarray(arrays["t_s"])
         speed = np.gradient(np.asarray(arrays["joint_position"]), t, axis=0)
-        LOG.info("figure: %s", plot_run_check(t, speed[:, :24], speed[:, 24], checks, args.plot))
+        limbs, tether = speed[:, :TETHER_INDEX], speed[:, TETHER_INDEX]
+        LOG.info("figure: %s", plot_run_check(t, limbs, tether, checks, args.plot))
     return 0 if result["ok"] else 1
 
 

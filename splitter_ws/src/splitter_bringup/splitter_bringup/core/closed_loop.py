@@ -43,6 +43,7 @@ from splitter_bringup.core.scenario import Scenario
 from splitter_bringup.core.series import RunSeries
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.projection import project_inertia
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
@@ -55,7 +56,6 @@ from splitter_sim.core.stepping import pushing_hemi
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
 CONTROL_PERIOD_NS = 10_000_000  # [ns] the control tick (docs/ARCHITECTURE.md)
-TETHER_JOINT = 24
 
 ProgressCallback = Callable[[float], None]  # called with the fraction done, in [0, 1]
 
@@ -248,7 +248,7 @@ def run_closed_loop(
                 state.velocity_m_s,
                 received_quaternion(state.orientation_wxyz, hops=1),  # odom
                 state.angular_velocity_rad_s,
-                float(state.joint_position[TETHER_JOINT]) / 2.0,
+                float(state.joint_position[TETHER_INDEX]) / 2.0,
                 state.contact_force_n[:, 2],
                 state.principal_inertia_kg_m2,  # /splitter/inertia
             )

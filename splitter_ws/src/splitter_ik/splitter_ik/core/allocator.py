@@ -56,10 +56,10 @@ from splitter_ik.core.tether import (
     max_taut_radius_acceleration,
     reeling_tether_tension,
 )
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
 
-TETHER_JOINT_INDEX = 24
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
 KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
 _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
@@ -193,7 +193,7 @@ class TetherLimbAllocator:
             knee_limits,
         )
         self._speed = np.full(25, model.joint_speed_max_rad_s * config.speed_fraction)
-        self._speed[TETHER_JOINT_INDEX] = self._limits[0].speed_max
+        self._speed[TETHER_INDEX] = self._limits[0].speed_max
         limb_min = [-model.hip_abduction_limit_rad, -model.hip_pitch_limit_rad, model.knee_min_rad]
         limb_max = [model.hip_abduction_limit_rad, model.hip_pitch_limit_rad, model.knee_max_rad]
         self._q_min = np.array(limb_min * 8 + [model.tether_length_min_m])
@@ -224,7 +224,7 @@ class TetherLimbAllocator:
 
     def _rest_state(self, t_ns: int | None, radii: NDArray[np.float64]) -> _State:
         q = self._joint_positions(radii)
-        drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
+        drive = q[[TETHER_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
         return _State(t_ns=t_ns, drive=drive, drive_rate=np.zeros(3), joint_position=q)
 
     def _joint_positions(self, radii: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -325,7 +325,7 @@ class TetherLimbAllocator:
                 )
             radii = self._radii_from_drive(drive)
             q = self._joint_positions(radii)
-            drive = q[[TETHER_JOINT_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
+            drive = q[[TETHER_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
             rate = (drive - start.drive) / dt
             state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
             here = start

@@ -16,6 +16,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 
 # Relative slack accepted on a radius at the edge of the knee range (rounding of r(k)).
@@ -107,5 +108,5 @@ def joint_velocities_from_radii_rate(
     qdot = np.zeros(25)
     for limb in range(8):
         qdot[3 * limb : 3 * limb + 3] = rates_y if limb % 4 < 2 else rates_z
-    qdot[24] = 2.0 * rdot[0]
+    qdot[TETHER_INDEX] = 2.0 * rdot[0]
     return qdot

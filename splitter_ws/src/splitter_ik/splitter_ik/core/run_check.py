@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_ik.core.tether import hemi_mass_kg
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import limb_forward_kinematics
 from splitter_model.model import (
     MOTOR_OUTPUT_CONTINUOUS_TORQUE_NM,
@@ -78,7 +79,7 @@ def tip_positions_m(model: RobotModel, joint_position: ArrayLike) -> NDArray[np.
     for k in range(q.shape[0]):
         for limb in range(8):
             sign = 1.0 if limb < 4 else -1.0
-            body = np.array([sign * q[k, 24] / 2.0, 0.0, 0.0])
+            body = np.array([sign * q[k, TETHER_INDEX] / 2.0, 0.0, 0.0])
             tips[k, limb] = body + limb_forward_kinematics(
                 model, limb, q[k, 3 * limb : 3 * limb + 3]
             )
@@ -145,13 +146,15 @@ def check_run(
         k, j = np.unravel_index(int(np.argmax(block)), block.shape)
         return LimitCheck(key, float(block[k, j]), limit, unit, f"{labels[j]} at t = {t[k]:.3f} s")
 
-    limb_names = list(names[:24])
+    limb_names = list(names[:TETHER_INDEX])
     out = [
-        worst("limb_joint_speed", speed[:, :24], limb_names, model.joint_speed_max_rad_s, "rad/s"),
-        worst("limb_joint_acceleration", accel[:, :24], limb_names,
+        worst("limb_joint_speed", speed[:, :TETHER_INDEX], limb_names,
+              model.joint_speed_max_rad_s, "rad/s"),
+        worst("limb_joint_acceleration", accel[:, :TETHER_INDEX], limb_names,
               model.joint_acceleration_max_rad_s2, "rad/s^2"),
-        worst("tether_speed", speed[:, 24:], [names[24]], model.tether_speed_max_m_s, "m/s"),
-        worst("tether_acceleration", accel[:, 24:], [names[24]],
+        worst("tether_speed", speed[:, TETHER_INDEX:], [names[TETHER_INDEX]],
+              model.tether_speed_max_m_s, "m/s"),
+        worst("tether_acceleration", accel[:, TETHER_INDEX:], [names[TETHER_INDEX]],
               model.tether_acceleration_max_m_s2, "m/s^2"),
     ]  # fmt: skip
     flight = np.ones(len(t), dtype=bool)
@@ -162,7 +165,7 @@ def check_run(
         out.append(worst("limb_torque_flight", torques, limb_names,
                          MOTOR_OUTPUT_CONTINUOUS_TORQUE_NM, "Nm"))  # fmt: skip
     tension = hemi_mass_kg(model) * (
-        q[:, 24] / 2.0 * (w[:, 1] ** 2 + w[:, 2] ** 2) - accel[:, 24] / 2.0
+        q[:, TETHER_INDEX] / 2.0 * (w[:, 1] ** 2 + w[:, 2] ** 2) - accel[:, TETHER_INDEX] / 2.0
     )
     reel = np.abs(tension)[:, None] * model.tether_spool_radius_m
     out.append(worst("tether_reel_torque", reel, ["tether reel"],

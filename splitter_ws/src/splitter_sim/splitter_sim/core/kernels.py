@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from splitter_model.actuators import N_JOINTS, ActuatorLimits
+from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits
 from splitter_model.codegen import (
     DEFAULT_FLAGS,
     CFunction,
@@ -154,11 +154,11 @@ def _sym_shape(ca: Any, q: Sequence, qd: Sequence, qdd: Sequence, model: Sequenc
     total = model[2 + N_MASSES]
     cos, sin = ca.cos, ca.sin
     zero = 0.0
-    half_tether = 0.5 * q[24]
+    half_tether = 0.5 * q[TETHER_INDEX]
     px = [half_tether, zero, zero, zero, zero, -half_tether, zero, zero, zero, zero]
     py = [zero] * 10
     pz = [zero] * 10
-    vb, ab = 0.5 * qd[24], 0.5 * qdd[24]
+    vb, ab = 0.5 * qd[TETHER_INDEX], 0.5 * qdd[TETHER_INDEX]
     vx = [vb, zero, zero, zero, zero, -vb, zero, zero, zero, zero]
     vy = [zero] * 10
     vz = [zero] * 10

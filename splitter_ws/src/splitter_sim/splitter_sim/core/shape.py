@@ -24,6 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import limb_frame
 from splitter_model.model import RobotModel
 
@@ -210,7 +211,7 @@ class ShapeKinematics:
         moving = qd is not None and (any(qd) or (qdd is not None and any(qdd)))
         l1, l2 = self.l1, self.l2
         cos, sin = math.cos, math.sin
-        half_tether = 0.5 * q[24]
+        half_tether = 0.5 * q[TETHER_INDEX]
         px = [half_tether, 0.0, 0.0, 0.0, 0.0, -half_tether, 0.0, 0.0, 0.0, 0.0]
         py = [0.0] * 10
         pz = [0.0] * 10
@@ -227,7 +228,7 @@ class ShapeKinematics:
             return self._about_com(px, py, pz, None)
         if qdd is None:
             qdd = (0.0,) * 25
-        vb, ab = 0.5 * qd[24], 0.5 * qdd[24]
+        vb, ab = 0.5 * qd[TETHER_INDEX], 0.5 * qdd[TETHER_INDEX]
         vx = [vb, 0.0, 0.0, 0.0, 0.0, -vb, 0.0, 0.0, 0.0, 0.0]
         vy = [0.0] * 10
         vz = [0.0] * 10
