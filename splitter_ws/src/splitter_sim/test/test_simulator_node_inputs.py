@@ -305,3 +305,50 @@ def test_shape_at_rest_without_joint_velocities() -> None:
     other = kin.evaluate(q, None, np.ones(names.N_JOINTS))
     assert other.inertia == rest.inertia
     assert other.h == (0.0, 0.0, 0.0)
+
+
+def _joint_command(stamp_ns: int, radii: tuple[float, float, float], tether_v: float) -> JointState:
+    """A valid joint command (names in order), the tether moving at ``tether_v``."""
+    velocity = np.zeros(names.N_JOINTS)
+    velocity[-1] = tether_v
+    return conv.joint_state_to_msg(stamp_ns, joint_positions_from_radii(MODEL, radii), velocity)
+
+
+def test_real_time_queues_a_point_stamped_ahead_and_applies_it_at_its_stamp(make_node) -> None:
+    with make_node(mode="real_time", command_extrapolation_s=0.25) as node:
+        _step(node, 2)  # t = 10 ms
+        ahead = 30_000_000
+        node._on_joint_commands(_joint_command(ahead, (2.7, 0.2, 0.2), -0.1))
+        assert len(node._queue) == 1
+        assert node._sim._cmd_t_ns == 0  # not in force yet
+        while node._sim.time_ns < ahead:
+            node._step()
+            node._publish_state(node._sim.time_ns)
+        node._step()  # the step from the stamp applies it first
+        assert node._sim._cmd_t_ns == ahead and len(node._queue) == 0
+        assert node._late_joint_commands == 0
+        # a point earlier than the one in force, or too far ahead, is refused (counted)
+        node._on_joint_commands(_joint_command(ahead - DT_NS, (2.7, 0.2, 0.2), 0.0))
+        node._on_joint_commands(
+            _joint_command(node._sim.time_ns + 10 * NS_PER_S, (2.7, 0.2, 0.2), 0.0)
+        )
+        assert rejection_counts(node)["joint_commands"] == 2
+        assert node._sim._cmd_t_ns == ahead
+
+
+def test_real_time_a_late_point_is_followed_from_its_stamp_and_counted(make_node) -> None:
+    with make_node(mode="real_time", command_extrapolation_s=0.25) as node:
+        _step(node, 4)  # t = 20 ms
+        node._on_joint_commands(_joint_command(10_000_000, (2.7, 0.2, 0.2), -0.1))
+        assert node._late_joint_commands == 1
+        assert node._sim._cmd_t_ns == 10_000_000  # its stamp, not its arrival
+        values = node._latency.values()
+        assert values["latency_joint_commands_last_ms"] == pytest.approx(10.0)
+
+
+def test_lockstep_refuses_a_point_stamped_ahead(make_node) -> None:
+    with make_node() as node:
+        _step(node, 2)
+        node._on_joint_commands(_joint_command(node._sim.time_ns + DT_NS, (2.7, 0.2, 0.2), 0.0))
+        assert rejection_counts(node)["joint_commands"] == 1
+        assert len(node._queue) == 0
