@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
@@ -26,12 +25,11 @@ from rosbags.typesys import Stores, get_typestore
 from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.graph_run import run_graph
-from splitter_bringup.inprocess import clock_reached, start_graph
+from splitter_bringup.inprocess import record_graph
 from splitter_bringup.replay import replay_mpc
 from splitter_msgs_py import names
 from splitter_msgs_py.bag import read_mcap_statistics, read_messages, read_metadata
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
-from splitter_msgs_py.recorder_node import RecorderNode
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 RECORD_S = 2.0  # [s] simulated time recorded
@@ -63,28 +61,12 @@ def recorded_graph(tmp_path_factory: pytest.TempPathFactory):
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=TEST_DOMAIN_ID)
     try:
-        graph = start_graph(scenario, context)
-        recorder = RecorderNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("output", value=str(bag_dir)),
-                Parameter("topics", value=list(names.TOPIC_TYPES)),
-                Parameter("use_sim_time", value=True),
-            ],
+        record = record_graph(
+            scenario,
+            context,
+            {"output": str(bag_dir), "topics": list(names.TOPIC_TYPES), "use_sim_time": True},
+            RECORD_S,
         )
-        graph.executor.add_node(recorder)
-        try:
-            assert graph.run_until(clock_reached(RECORD_S), timeout_s=180.0)
-            # stop the simulator, then drain what is in flight before closing the bag
-            graph.remove("simulator")
-            for _ in range(200):
-                graph.executor.spin_once(timeout_sec=0.01)
-        finally:
-            graph.executor.remove_node(recorder)
-            recorder.close()
-            recorder.destroy_node()
-            record = graph.record
-            graph.shutdown()
     finally:
         context.try_shutdown()
     return bag_dir, record

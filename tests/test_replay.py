@@ -19,17 +19,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from rclpy.parameter import Parameter
 
 from splitter_bringup.core.graph_config import graph_nodes, with_parameter_attachments
 from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.inprocess import clock_reached, start_graph
+from splitter_bringup.inprocess import record_graph
 from splitter_bringup.replay import ReplayError, replay_mpc
 from splitter_msgs_py import names
 from splitter_msgs_py.bag import BagWriter, read_messages, read_metadata
 from splitter_msgs_py.bag.definitions import header_stamp_ns
 from splitter_msgs_py.bag.reader import read_attachments
-from splitter_msgs_py.recorder_node import RecorderNode
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 REPLAY_DOMAIN_ID = TEST_DOMAIN_ID + 13  # <= MAX_DOMAIN_OFFSET
@@ -47,22 +45,7 @@ def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=TEST_DOMAIN_ID)
     try:
-        graph = start_graph(scenario, context)
-        recorder = RecorderNode(
-            context=context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in recorder_params.items()],
-        )
-        graph.executor.add_node(recorder)
-        try:
-            assert graph.run_until(clock_reached(RECORD_S), timeout_s=180.0)
-            graph.remove("simulator")
-            for _ in range(200):
-                graph.executor.spin_once(timeout_sec=0.01)
-        finally:
-            graph.executor.remove_node(recorder)
-            recorder.close()
-            recorder.destroy_node()
-            graph.shutdown()
+        record_graph(scenario, context, recorder_params, RECORD_S)
     finally:
         context.try_shutdown()
     assert not (bag_dir.parent / "params").exists()  # only the bag carries the parameters

@@ -168,6 +168,19 @@ def _clean_copy(dest: Path) -> None:
             shutil.copy2(source, dest / name)
 
 
+def _user_bash(script: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``script`` in bash, in a user's shell environment (:func:`_user_environment`)."""
+    return subprocess.run(
+        ["bash", "-c", script],
+        cwd=cwd,
+        env=_user_environment(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
 def _user_environment() -> dict[str, str]:
     """A shell's environment without what the Makefile or the test suite exported for ROS.
 
@@ -251,14 +264,8 @@ def test_make_colcon_install_space_imports_the_sources(make_colcon: tuple[Path, 
     clone, _ = make_colcon
     workspace = clone / "splitter_ws"
     imports = "; ".join(f"import {p}; print({p}.__file__)" for p in PACKAGES)
-    located = subprocess.run(
-        ["bash", "-c", f'source install/setup.bash && exec "{sys.executable}" -c "{imports}"'],
-        cwd=workspace,
-        env=_user_environment(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
+    located = _user_bash(
+        f'source install/setup.bash && exec "{sys.executable}" -c "{imports}"', workspace
     )
     assert located.returncode == 0, located.stderr
     files = [Path(line).resolve() for line in located.stdout.split()]
@@ -276,15 +283,7 @@ def test_readme_node_starts_from_the_install_space(
     assert commands, "the README starts no node after `make colcon`"
     setup, start = "\n".join(["set -e", *commands[:-1]]), commands[-1]
     # Before any node runs: the environment the lines before it leave is loopback-only.
-    printed = subprocess.run(
-        ["bash", "-c", setup + "\nenv -0"],
-        cwd=clone,
-        env=_user_environment(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    printed = _user_bash(setup + "\nenv -0", clone)
     assert printed.returncode == 0, printed.stderr
     environ = dict(item.split("=", 1) for item in printed.stdout.split("\0") if "=" in item)
     profile = Path(environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", "/nonexistent"))

@@ -152,3 +152,40 @@ def clock_reached(t_s: float) -> Callable[[GraphRecord], bool]:
         return stamp_from_msg(clock.clock) >= target_ns
 
     return stop
+
+
+def record_graph(
+    scenario: Scenario,
+    context: Context,
+    recorder_parameters: dict,
+    record_s: float,
+    timeout_s: float = 180.0,
+) -> GraphRecord:
+    """Fly ``scenario`` in process with a recorder node until ``record_s`` of simulated time.
+
+    The simulator is removed first and what is in flight drained, then the recorder
+    closes its bag. Returns what the probe saw. Raises ``TimeoutError`` when the
+    flight does not reach ``record_s`` within ``timeout_s`` (wall).
+    """
+    from splitter_msgs_py.recorder_node import RecorderNode
+
+    graph = start_graph(scenario, context)
+    try:
+        recorder = RecorderNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in recorder_parameters.items()],
+        )
+        graph.executor.add_node(recorder)
+        try:
+            if not graph.run_until(clock_reached(record_s), timeout_s=timeout_s):
+                raise TimeoutError(f"the graph did not reach t = {record_s} s in {timeout_s} s")
+            graph.remove("simulator")
+            for _ in range(200):
+                graph.executor.spin_once(timeout_sec=0.01)
+        finally:
+            graph.executor.remove_node(recorder)
+            recorder.close()
+            recorder.destroy_node()
+        return graph.record
+    finally:
+        graph.shutdown()
