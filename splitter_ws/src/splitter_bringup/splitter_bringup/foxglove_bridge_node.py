@@ -29,25 +29,21 @@ from collections.abc import Sequence
 
 import foxglove
 import numpy as np
-import rclpy
 from foxglove.channels import FrameTransformsChannel
 from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Timestamp, Vector3
 from foxglove.websocket import Capability
 from geometry_msgs.msg import Point
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
-from rclpy.signals import SignalHandlerOptions
 from visualization_msgs.msg import Marker, MarkerArray
 
 from splitter_msgs_py import names
 from splitter_msgs_py.bag.definitions import header_stamp_ns, message_definition, starts_with_header
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 from splitter_sim.core.scene import Arrow, scene_arrows
 
 NODE_NAME = "foxglove_bridge"
@@ -275,26 +271,15 @@ class FoxgloveBridgeNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter or busy port exits with 1."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
     started = time.monotonic()
-    try:
-        node = FoxgloveBridgeNode()
-        spin_until_stopped(node, stop)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            get_logger(NODE_NAME).info(
-                f"served {node.scene_count} scenes in {time.monotonic() - started:.1f} s"
-            )
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(
+        lambda stop: FoxgloveBridgeNode(),
+        NODE_NAME,
+        args,
+        before_destroy=lambda node: node.get_logger().info(
+            f"served {node.scene_count} scenes in {time.monotonic() - started:.1f} s"
+        ),
+    )
 
 
 if __name__ == "__main__":

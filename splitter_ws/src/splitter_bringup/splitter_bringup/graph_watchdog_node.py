@@ -18,13 +18,9 @@ from __future__ import annotations
 
 import time
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_bringup.core.foreign_publishers import (
@@ -39,13 +35,13 @@ from splitter_bringup.core.watchdog import (
 )
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import DiagnosticStatusSample, diagnostics_to_msg
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
     declare_parameters,
 )
 from splitter_msgs_py.qos import qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "graph_watchdog"
 STALL_PREFIX = "STALLED"  # the launcher matches "STALLED <node>: <reason>"
@@ -164,22 +160,7 @@ def graph_publishers(node: Node) -> dict[str, list[tuple[str, bytes]]]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = GraphWatchdogNode()
-        spin_until_stopped(node, stop)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(lambda stop: GraphWatchdogNode(), NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -46,14 +46,10 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
@@ -68,10 +64,8 @@ from splitter_model.model import (
 )
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
-    MAX_STAMP_LEAD_NS,
     DiagnosticStatusSample,
     MessageValidationError,
-    StampGate,
     checked_stamp_from_msg,
     diagnostics_to_msg,
     imu_from_msg,
@@ -80,6 +74,8 @@ from splitter_msgs_py.conversions import (
     vector3_from_msg,
 )
 from splitter_msgs_py.core.latency import InputLatency
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, StampGate
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
@@ -90,7 +86,6 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "ik_tether_allocator"
 STATUS_NAME = f"{NODE_NAME}: allocation"
@@ -634,22 +629,7 @@ class IkTetherAllocatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Spin until Ctrl-C or shutdown; an invalid parameter exits with 1 naming it."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = IkTetherAllocatorNode()
-        spin_until_stopped(node, stop)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(lambda stop: IkTetherAllocatorNode(), NODE_NAME, args)
 
 
 if __name__ == "__main__":

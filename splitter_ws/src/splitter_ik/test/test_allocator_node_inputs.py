@@ -27,6 +27,7 @@ from splitter_ik.ik_tether_allocator_node import MAX_BODY_RATE_RAD_S, IkTetherAl
 from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS
 from splitter_msgs_py.inspection import non_finite_fields, record_publications
 from splitter_msgs_py.parameters import rejection_counts
 
@@ -311,7 +312,7 @@ def test_projection_of_1e300_does_not_assert() -> None:
         ("zero", Time()),
         ("backwards", conv.stamp_to_msg(2 * TICK_NS)),
         ("far ahead", Time(sec=2_000_000_000)),
-        ("just beyond the lead", conv.stamp_to_msg(5 * TICK_NS + conv.MAX_STAMP_LEAD_NS + 1)),
+        ("just beyond the lead", conv.stamp_to_msg(5 * TICK_NS + MAX_STAMP_LEAD_NS + 1)),
         ("nanosec out of range", Time(sec=0, nanosec=4_000_000_000)),
         ("negative", Time(sec=-1)),
     ],

@@ -42,16 +42,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
@@ -67,10 +63,8 @@ from splitter_mpc.core.gait import (
 from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
-    MAX_STAMP_LEAD_NS,
     DiagnosticStatusSample,
     MessageValidationError,
-    StampGate,
     checked_stamp_from_msg,
     diagnostics_to_msg,
     joint_state_from_msg,
@@ -82,6 +76,8 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.core.latency import InputLatency
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, StampGate
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import (
     READ_ONLY_NOTE,
     InvalidParameterError,
@@ -93,7 +89,6 @@ from splitter_msgs_py.parameters import (
     warn_throttled,
 )
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 NODE_NAME = "gait_phase_manager"
 DEFAULTS = GaitConfig()
@@ -578,22 +573,7 @@ class GaitPhaseManagerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = GaitPhaseManagerNode()
-        spin_until_stopped(node, stop)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(lambda stop: GaitPhaseManagerNode(), NODE_NAME, args)
 
 
 if __name__ == "__main__":

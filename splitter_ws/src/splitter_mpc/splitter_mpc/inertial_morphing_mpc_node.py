@@ -28,14 +28,10 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
@@ -48,7 +44,6 @@ from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     MessageValidationError,
-    StampGate,
     checked_stamp_from_msg,
     diagnostics_to_msg,
     imu_from_msg,
@@ -58,6 +53,8 @@ from splitter_msgs_py.conversions import (
     vector3_to_msg,
 )
 from splitter_msgs_py.core.latency import InputLatency
+from splitter_msgs_py.core.stamps import StampGate
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterSpec,
@@ -69,7 +66,7 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_msgs_py.signals import StopRequest
 
 NODE_NAME = "inertial_morphing_mpc"
 MAX_RATE_RAD_S = 100.0  # [rad/s] likewise for rates
@@ -565,22 +562,7 @@ class InertialMorphingMpcNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; an invalid parameter stops it with exit code 1."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = InertialMorphingMpcNode(stop=stop)
-        spin_until_stopped(node, stop)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(lambda stop: InertialMorphingMpcNode(stop=stop), NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from splitter_mpc.gait_phase_manager_node import (
 )
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS
 from splitter_msgs_py.inspection import non_finite_fields, record_publications
 from splitter_msgs_py.parameters import rejection_counts
 
@@ -233,7 +234,7 @@ class Stamps:
         if topic in self.last and t < self.last[topic]:
             return False
         latest = max(self.last.values(), default=None)
-        return latest is None or t <= latest + conv.MAX_STAMP_LEAD_NS
+        return latest is None or t <= latest + MAX_STAMP_LEAD_NS
 
     def accepted(self, topic: str, t_ns: int) -> None:
         self.last[topic] = max(t_ns, self.last.get(topic, t_ns))

@@ -43,6 +43,8 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from splitter_msgs_py.core.parameter_fields import parameter_fields
+
 ParameterValue = bool | int | float | str | list[float] | list[str]
 # Applies a live change: the node's validated values after the change (every
 # parameter declared through declare_parameters). Raises InvalidParameterError or
@@ -337,3 +339,50 @@ def rejection_counts(node: Node) -> dict[str, int]:
     """How many inputs ``node`` rejected, per key passed to :func:`warn_throttled`."""
     state = node.__dict__.get("_splitter_rejections", {})
     return {key: int(count) for key, (count, _) in state.items()}
+
+
+def specs_from_config(
+    config_class: type, *, exclude: Sequence[str] = (), live: Sequence[str] = ()
+) -> tuple[ParameterSpec, ...]:
+    """The parameter specs of the fields of ``config_class`` marked with ``parameter_field``.
+
+    ``exclude``: fields the node does not expose; ``live``: fields made live here
+    although the core marks them read-only (a node that can apply them).
+    """
+    specs = []
+    for name, default, info in parameter_fields(config_class):
+        if name in exclude:
+            continue
+        specs.append(
+            ParameterSpec(
+                name=name,
+                default=list(default) if isinstance(default, tuple) else default,
+                description=info.description,
+                min_value=info.min_value,
+                max_value=info.max_value,
+                choices=info.choices,
+                length=info.length,
+                item_type=info.item_type,
+                live=info.live or name in live,
+            )
+        )
+    return tuple(specs)
+
+
+def config_from_values(config_class: type, values: Mapping[str, ParameterValue], **others):
+    """``config_class`` built from the node's validated ``values`` of its parameter fields.
+
+    ``others`` sets fields that are not parameters (or overrides). A value the
+    config refuses (its ``__post_init__`` raises ``ValueError``) becomes an
+    :class:`InvalidParameterError`, which stops the node naming the field.
+    """
+    kwargs: dict[str, object] = {}
+    for name, default, _info in parameter_fields(config_class):
+        if name in values:
+            value = values[name]
+            kwargs[name] = tuple(value) if isinstance(default, tuple) else value  # type: ignore[arg-type]
+    kwargs.update(others)
+    try:
+        return config_class(**kwargs)
+    except ValueError as exc:
+        raise InvalidParameterError(f"{config_class.__name__}: {exc}") from exc

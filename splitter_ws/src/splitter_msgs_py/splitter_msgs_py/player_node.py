@@ -18,12 +18,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py import names, qos
 from splitter_msgs_py.bag.metadata import read_metadata
@@ -36,8 +33,9 @@ from splitter_msgs_py.bag.reader import BagMessage, read_messages
 from splitter_msgs_py.bag.ros_params import declare_topic_list
 from splitter_msgs_py.bag.ros_qos import publisher_qos
 from splitter_msgs_py.conversions import clock_to_msg, message_class
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_msgs_py.signals import spin_until_stopped
 
 NODE_NAME = "player"
 _NS_PER_S = 1_000_000_000
@@ -212,19 +210,13 @@ class PlayerNode(Node):
 
 def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | None = None) -> int:
     """Play until the end (or SIGINT / SIGTERM); the body of :func:`main`. 1 on a playback error."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = PlayerNode(parameter_overrides=parameter_overrides or [])
-        spin_until_stopped(node, stop, finished=node.finished.is_set)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 1 if node is not None and node.error is not None else 0
+    return run_node(
+        lambda stop: PlayerNode(parameter_overrides=parameter_overrides or []),
+        NODE_NAME,
+        args,
+        spin=lambda node, stop: spin_until_stopped(node, stop, finished=node.finished.is_set),
+        exit_code=lambda node: 1 if node.error is not None else 0,
+    )
 
 
 def main(args: list[str] | None = None) -> None:

@@ -24,13 +24,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.executors import Executor
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py.bag import definitions
 from splitter_msgs_py.bag.node_parameters import (
@@ -49,6 +47,7 @@ from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos,
 from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 from splitter_msgs_py.conversions import message_class
 from splitter_msgs_py.executors import make_executor
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
 from splitter_msgs_py.signals import StopRequest, drain, spin_until_stopped
 
@@ -311,27 +310,23 @@ def recorder_executor(node: RecorderNode) -> Executor:
     return executor
 
 
+def _record_until_stopped(node: RecorderNode, stop: StopRequest) -> None:
+    executor = recorder_executor(node)
+    spin_until_stopped(node, stop, executor=executor)
+    if node.context.ok():
+        # The launcher stops the recorder after the other nodes: take what they sent last.
+        late = drain(executor, lambda: sum(node.writer.message_counts.values()))
+        node.get_logger().info(f"drained {late} messages still queued at the stop")
+
+
 def run(parameter_overrides: list[Parameter] | None = None, args: list[str] | None = None) -> int:
     """Record until SIGINT / SIGTERM, then finish the bag; the body of :func:`main`."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = RecorderNode(parameter_overrides=parameter_overrides or [])
-        executor = recorder_executor(node)
-        spin_until_stopped(node, stop, executor=executor)
-        if node.context.ok():
-            # The launcher stops the recorder after the other nodes: take what they sent last.
-            recorder = node
-            late = drain(executor, lambda: sum(recorder.writer.message_counts.values()))
-            node.get_logger().info(f"drained {late} messages still queued at the stop")
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(
+        lambda stop: RecorderNode(parameter_overrides=parameter_overrides or []),
+        NODE_NAME,
+        args,
+        spin=_record_until_stopped,
+    )
 
 
 def main(args: list[str] | None = None) -> None:

@@ -11,6 +11,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import StampGate
 
 RNG = np.random.default_rng(7)
 
@@ -161,7 +162,7 @@ def test_checked_stamp_rejects_negative_and_unnormalized_stamps() -> None:
 
 
 def test_stamp_gate_per_topic_order_and_lead() -> None:
-    gate = conv.StampGate(max_lead_ns=100)
+    gate = StampGate(max_lead_ns=100)
     assert gate.latest_ns is None
     gate.accept("a", gate.check("a", 10_000))  # the first stamp has no reference
     gate.accept("a", gate.check("a", 10_000))  # a repeat is fine
@@ -180,11 +181,11 @@ def test_stamp_gate_per_topic_order_and_lead() -> None:
     assert (gate.last_ns("a"), gate.last_ns("b"), gate.last_ns("c")) == (10_000, 5, None)
     assert gate.latest_ns == 10_000
     with pytest.raises(ValueError):
-        conv.StampGate(-1)
+        StampGate(-1)
 
 
 def test_stamp_gate_reads_a_clock_function_only_when_the_newest_stamp_cannot_decide() -> None:
-    gate = conv.StampGate(max_lead_ns=100)
+    gate = StampGate(max_lead_ns=100)
     reads: list[int] = []
 
     def clock(value: int | None) -> Callable[[], int | None]:

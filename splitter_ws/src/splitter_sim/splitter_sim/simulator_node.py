@@ -47,17 +47,13 @@ import math
 import time
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.logging import get_logger
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from scipy.spatial.transform import Rotation
@@ -69,7 +65,6 @@ from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     MessageValidationError,
-    StampGate,
     checked_stamp_from_msg,
     clock_to_msg,
     diagnostics_to_msg,
@@ -83,6 +78,8 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.core.latency import InputLatency
+from splitter_msgs_py.core.stamps import StampGate
+from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import (
     READ_ONLY_NOTE,
     InvalidParameterError,
@@ -93,7 +90,7 @@ from splitter_msgs_py.parameters import (
 )
 from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import qos_for
-from splitter_msgs_py.signals import StopRequest, spin_until_stopped
+from splitter_msgs_py.signals import spin_until_stopped
 from splitter_sim.core.actuators import validate_joint_command
 from splitter_sim.core.scene import scene_arrows
 from splitter_sim.core.simulator import InitialState, SimConfig, SimState, Simulator
@@ -1001,22 +998,12 @@ def _markers(t_ns: int, state: SimState) -> MarkerArray:
 
 def main(args: list[str] | None = None) -> int:
     """Run until duration_s (if set), Ctrl-C or shutdown; an invalid parameter exits with 1."""
-    stop = StopRequest()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = SimulatorNode()
-        spin_until_stopped(node, stop, finished=node.finished.done)
-    except InvalidParameterError as exc:
-        get_logger(NODE_NAME).fatal(f"invalid parameter, not starting: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(
+        lambda stop: SimulatorNode(),
+        NODE_NAME,
+        args,
+        spin=lambda node, stop: spin_until_stopped(node, stop, finished=node.finished.done),
+    )
 
 
 if __name__ == "__main__":
