@@ -11,36 +11,26 @@ from rclpy.qos import (
 
 from splitter_msgs_py import names
 
+
+def _reliable(depth: int, durability: DurabilityPolicy = DurabilityPolicy.VOLATILE) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=durability,
+    )
+
+
 # State and command streams: reliable so that lockstep never loses a tick, and deep
 # enough that a recorder keeps up at the graph's full rate.
-STATE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+STATE_QOS = _reliable(depth=100)
 COMMAND_QOS = STATE_QOS
 # /clock as ROS publishes it for simulated time.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+CLOCK_QOS = _reliable(depth=100)
 # Latched: late joiners get the current gait phase and reference (DESIGN.md section 4).
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+LATCHED_QOS = _reliable(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Visualisation and diagnostics.
-DIAGNOSTICS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=50,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+DIAGNOSTICS_QOS = _reliable(depth=50)
 MARKERS_QOS = DIAGNOSTICS_QOS
 
 TOPIC_QOS: dict[str, QoSProfile] = {
