@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear, minimize
 
-from splitter_ik.core.projection import inertia_map, project_inertia, reachable_inertia_bounds
+from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.model import RobotModel, principal_inertia, radii_from_inertia
+from splitter_model.reachable import inertia_map
 
 MODEL = RobotModel()
 R_MIN, R_MAX = MODEL.radii_min_m, MODEL.radii_max_m

@@ -10,8 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_ik.core.projection import inertia_map, project_inertia, reachable_inertia_bounds
+from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.model import RobotModel
+from splitter_model.reachable import inertia_map
 
 # An overflow inside the projection would be a number it does not handle.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+from splitter_model.reachable import radius_squared_matrix
 from splitter_mpc.core.controller import ControllerConfig
 from splitter_mpc.core.gait import quaternion_multiply, rotation_matrix
 from splitter_mpc.core.limits import (
     limb_radial_speed_max_m_s,
     morphing_limits,
     project_to_reachable,
-    radius_squared_matrix,
 )
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function

@@ -8,7 +8,8 @@ space):
 
 * radius bounds: ``r_i^2`` is *linear* in the principal moments (the radicands of
   the paper's closed form, eq. 3), so ``r_min^2 <= s_i(I) <= r_max^2`` is an exact,
-  linear description of every inertia the tether and limbs can produce;
+  linear description of every inertia the tether and limbs can produce (the one
+  :class:`~splitter_model.reachable.ReachableSet`, shared with the allocator);
 * radius rates: ``|r_i(I_{k+1}) - r_i(I_k)| <= v_i dt`` with the reel speed for
   ``r_x`` and the slowest radial limb-tip speed for ``r_y``, ``r_z``;
 * tether tension ``T = m_x r_x (w_y^2 + w_z^2) >= T_min`` (taut tether,
@@ -27,27 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_model.model import RobotModel, principal_inertia
+from splitter_model.model import RobotModel
+from splitter_model.reachable import ReachableSet, reachable_set
 
 # Knee samples used to find the slowest radial tip speed over the knee range.
 _KNEE_SAMPLES = 2001
-
-
-def radius_squared_matrix(model: RobotModel) -> NDArray[np.float64]:
-    """A (3, 3) with ``(r_x^2, r_y^2, r_z^2) = A (Ixx, Iyy, Izz)`` (paper eq. 3 radicands).
-
-    Inverse of :func:`splitter_model.model.principal_inertia`, which is linear in
-    the squared radii. Works for any masses; rows are the closed form's radicands.
-    """
-    mx, my, mz = model.body_mass_kg, model.limb_mass_y_kg, model.limb_mass_z_kg
-    hemi = mx + 2.0 * my + 2.0 * mz
-    return np.array(
-        [
-            [-1.0, 1.0, 1.0],
-            [1.0, -1.0, 1.0],
-            [1.0, 1.0, -1.0],
-        ]
-    ) / np.array([[4.0 * hemi], [8.0 * my], [8.0 * mz]])
 
 
 def limb_radial_speed_max_m_s(model: RobotModel) -> float:
@@ -73,19 +58,41 @@ class MorphingLimits:
     """Bounds of the inertial-morphing MPC, all derived from a :class:`RobotModel`.
 
     Per-axis arrays are ordered (x, y, z): radii (r_x, r_y, r_z), moments
-    (Ixx, Iyy, Izz).
+    (Ixx, Iyy, Izz). Radius and inertia bounds are the model's
+    :class:`~splitter_model.reachable.ReachableSet` (``reachable``).
     """
 
     dt_s: float  # [s] MPC prediction step the per-step bounds refer to
-    radius_min_m: NDArray[np.float64]  # (3,) [m]
-    radius_max_m: NDArray[np.float64]  # (3,) [m]
+    reachable: ReachableSet  # radius bounds, I = A s, s = R I
     radius_rate_max_m_s: NDArray[np.float64]  # (3,) [m/s]
-    inertia_min_kg_m2: NDArray[np.float64]  # (3,) [kg m^2]
-    inertia_max_kg_m2: NDArray[np.float64]  # (3,) [kg m^2]
     inertia_step_max_kg_m2: NDArray[np.float64]  # (3,) [kg m^2] dI_max per step dt
-    radius_squared_matrix: NDArray[np.float64]  # (3, 3) [1/kg]
     body_mass_kg: float  # [kg] m_x, for the tension constraint
     tension_min_n: float  # [N]
+
+    @property
+    def radius_min_m(self) -> NDArray[np.float64]:
+        """(3,) [m] lower radius bounds."""
+        return self.reachable.radius_min_m
+
+    @property
+    def radius_max_m(self) -> NDArray[np.float64]:
+        """(3,) [m] upper radius bounds."""
+        return self.reachable.radius_max_m
+
+    @property
+    def inertia_min_kg_m2(self) -> NDArray[np.float64]:
+        """(3,) [kg m^2] ``I_min``: eq. (2) at the smallest radii."""
+        return self.reachable.inertia_min_kg_m2
+
+    @property
+    def inertia_max_kg_m2(self) -> NDArray[np.float64]:
+        """(3,) [kg m^2] ``I_max``: eq. (2) at the largest radii."""
+        return self.reachable.inertia_max_kg_m2
+
+    @property
+    def radius_squared_matrix(self) -> NDArray[np.float64]:
+        """(3, 3) [1/kg] R with ``s = R I`` (eq. 3 radicands)."""
+        return self.reachable.radius_squared_matrix
 
     @property
     def radius_step_max_m(self) -> NDArray[np.float64]:
@@ -94,15 +101,11 @@ class MorphingLimits:
 
     def radii_squared(self, inertia_kg_m2: ArrayLike) -> NDArray[np.float64]:
         """(r_x^2, r_y^2, r_z^2) [m^2] of principal moments (negative if infeasible)."""
-        return np.asarray(inertia_kg_m2, dtype=float) @ self.radius_squared_matrix.T
+        return self.reachable.radii_squared(inertia_kg_m2)
 
     def is_reachable(self, inertia_kg_m2: ArrayLike, tol_m2: float = 1e-9) -> bool:
         """True when the moments come from radii inside the hardware bounds."""
-        s = self.radii_squared(inertia_kg_m2)
-        return bool(
-            np.all(s >= self.radius_min_m**2 - tol_m2)
-            and np.all(s <= self.radius_max_m**2 + tol_m2)
-        )
+        return self.reachable.contains(inertia_kg_m2, tol_m2)
 
 
 def morphing_limits(
@@ -134,8 +137,8 @@ def morphing_limits(
         raise ValueError(f"radius_rate_scale must be in (0, 1], got {radius_rate_scale}")
     if not (math.isfinite(tension_min_n) and tension_min_n >= 0.0):
         raise ValueError(f"tension_min_n must be finite and >= 0, got {tension_min_n}")
-    r_min = np.asarray(model.radii_min_m, dtype=float)
-    r_max = np.asarray(model.radii_max_m, dtype=float)
+    reachable = reachable_set(model)
+    r_max = reachable.radius_max_m
     v_limb = limb_radial_speed_max_m_s(model)
     rate = radius_rate_scale * np.array([model.tether_speed_max_m_s / 2.0, v_limb, v_limb])
     mx, my, mz = model.body_mass_kg, model.limb_mass_y_kg, model.limb_mass_z_kg
@@ -147,37 +150,20 @@ def morphing_limits(
     step_max = dt_s * np.array([y_term + z_term, x_term + z_term, x_term + y_term])
     return MorphingLimits(
         dt_s=dt_s,
-        radius_min_m=r_min,
-        radius_max_m=r_max,
+        reachable=reachable,
         radius_rate_max_m_s=rate,
-        inertia_min_kg_m2=principal_inertia(model, r_min),
-        inertia_max_kg_m2=principal_inertia(model, r_max),
         inertia_step_max_kg_m2=step_max,
-        radius_squared_matrix=radius_squared_matrix(model),
         body_mass_kg=mx,
         tension_min_n=tension_min_n,
     )
 
 
 def project_to_reachable(limits: MorphingLimits, inertia_kg_m2: ArrayLike) -> NDArray[np.float64]:
-    """Nearest moments (in squared-radius space) whose radii are within bounds.
-
-    Clips the squared radii to their bounds and maps back with eq. (2); used to
-    sanitise a measured inertia before it seeds the MPC.
-    """
-    s = np.clip(limits.radii_squared(inertia_kg_m2), limits.radius_min_m**2, limits.radius_max_m**2)
-    return np.linalg.solve(limits.radius_squared_matrix, s)
+    """Nearest reachable moments [kg m^2] (:meth:`ReachableSet.project`, Euclidean)."""
+    reachable = limits.reachable
+    return reachable.inertia(reachable.project(inertia_kg_m2))
 
 
 def axis_inertia_range(limits: MorphingLimits, axis: ArrayLike) -> tuple[float, float]:
-    """Smallest and largest moment ``e' I e`` [kg m^2] about the body axis ``e`` within reach.
-
-    ``I = M s`` is linear in the squared radii ``s`` and the radius bounds are a box
-    in ``s``, so each extreme sits at a corner chosen by the signs of ``(e^2)' M``.
-    """
-    e_sq = np.asarray(axis, dtype=float).reshape(3) ** 2
-    coefficients = e_sq @ np.linalg.inv(limits.radius_squared_matrix)  # [kg] per m^2
-    low, high = limits.radius_min_m**2, limits.radius_max_m**2
-    smallest = float(coefficients @ np.where(coefficients >= 0.0, low, high))
-    largest = float(coefficients @ np.where(coefficients >= 0.0, high, low))
-    return smallest, largest
+    """Smallest and largest moment ``e' I e`` [kg m^2] about the body axis ``e`` within reach."""
+    return limits.reachable.axis_inertia_range(axis)

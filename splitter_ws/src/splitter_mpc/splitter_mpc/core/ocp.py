@@ -411,8 +411,12 @@ class MorphingOcp:
 
         Without attitude states q is left out: ``(w, s)``.
         """
-        lim = self.limits
-        s_sq = np.clip(lim.radii_squared(inertia), lim.radius_min_m**2, lim.radius_max_m**2)
+        reachable = self.limits.reachable
+        s_sq = np.clip(
+            reachable.radii_squared(inertia),
+            reachable.radius_squared_min_m2,
+            reachable.radius_squared_max_m2,
+        )
         w = np.asarray(angular_velocity, dtype=float)
         if not self.state.attitude:
             return np.concatenate([w, s_sq])
@@ -435,8 +439,9 @@ class MorphingOcp:
         rate = 2.0 * lim.radius_step_max_m * r_low  # (n, 3) [m^2] per step
         lo = np.full((n, nx + NU), -np.inf)
         hi = np.full((n, nx + NU), np.inf)
-        lo[:, radii_sq] = lim.radius_min_m**2
-        hi[:, radii_sq] = lim.radius_max_m**2
+        s_min, s_max = lim.reachable.radius_squared_min_m2, lim.reachable.radius_squared_max_m2
+        lo[:, radii_sq] = s_min
+        hi[:, radii_sq] = s_max
         lo[:, nx : nx + 3] = -rate
         hi[:, nx : nx + 3] = rate
         lo[:, nx + 3] = 0.0
@@ -444,8 +449,8 @@ class MorphingOcp:
         hi[0, :nx] = x0
         lo_n = np.full(nx, -np.inf)
         hi_n = np.full(nx, np.inf)
-        lo_n[radii_sq] = lim.radius_min_m**2
-        hi_n[radii_sq] = lim.radius_max_m**2
+        lo_n[radii_sq] = s_min
+        hi_n[radii_sq] = s_max
         return np.concatenate([lo.ravel(), lo_n]), np.concatenate([hi.ravel(), hi_n])
 
     def constraint_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
