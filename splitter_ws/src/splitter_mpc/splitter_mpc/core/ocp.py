@@ -407,16 +407,12 @@ class MorphingOcp:
     def state_from_measurement(
         self, angular_velocity: ArrayLike, orientation_wxyz: ArrayLike, inertia: ArrayLike
     ) -> NDArray[np.float64]:
-        """x_0 = (w, q / |q|, s): squared radii of the measured moments, clipped to the bounds.
+        """x_0 = (w, q / |q|, s): squared radii of the reachable moments nearest the measured.
 
-        Without attitude states q is left out: ``(w, s)``.
+        Nearest in principal inertia (:meth:`~splitter_model.reachable.ReachableSet.project`,
+        the allocator's projection too). Without attitude states q is left out: ``(w, s)``.
         """
-        reachable = self.limits.reachable
-        s_sq = np.clip(
-            reachable.radii_squared(inertia),
-            reachable.radius_squared_min_m2,
-            reachable.radius_squared_max_m2,
-        )
+        s_sq = self.limits.reachable.project(inertia)
         w = np.asarray(angular_velocity, dtype=float)
         if not self.state.attitude:
             return np.concatenate([w, s_sq])
