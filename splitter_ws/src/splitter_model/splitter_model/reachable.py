@@ -109,7 +109,7 @@ class ReachableSet:
         at a corner chosen by the signs of ``(e^2)' A``.
         """
         e_sq = np.asarray(axis, dtype=float).reshape(3) ** 2
-        coefficients = e_sq @ np.linalg.inv(self.radius_squared_matrix)  # [kg] per m^2
+        coefficients = e_sq @ self.inertia_map  # [kg] per m^2
         low, high = self.radius_squared_min_m2, self.radius_squared_max_m2
         smallest = float(coefficients @ np.where(coefficients >= 0.0, low, high))
         largest = float(coefficients @ np.where(coefficients >= 0.0, high, low))

@@ -401,8 +401,8 @@ class MorphingOcp:
 
     @property
     def inertia_map(self) -> NDArray[np.float64]:
-        """M with ``I = M s`` (inverse of ``limits.radius_squared_matrix``)."""
-        return np.linalg.inv(self.limits.radius_squared_matrix)
+        """M with ``I = M s`` (the reachable set's map, eq. 2)."""
+        return self.limits.reachable.inertia_map
 
     def state_from_measurement(
         self, angular_velocity: ArrayLike, orientation_wxyz: ArrayLike, inertia: ArrayLike
@@ -496,7 +496,7 @@ def build_ocp(
     i_nom = p[layout.nominal_inertia]
     target = p[layout.momentum_target]
     axis, momentum_norm, spin_ref = target[0:3], target[3], target[4]
-    inertia_map = np.linalg.inv(limits.radius_squared_matrix)
+    inertia_map = limits.reachable.inertia_map
     m = ca.DM(inertia_map)
     state = StateLayout(attitude)
     nx, radii_sq = state.nx, state.radii_sq
