@@ -142,7 +142,7 @@ def test_unreachable_setpoint_projected_and_reported(ros_context) -> None:
             probe.imu(k * TICK_NS, [0.0, 1.0, 0.0])
             probe.setpoint(k * TICK_NS, [0.1, 300.0, 100.0])
             _spin(executor, lambda k=k: len(probe.commands) == k + 1)
-        assert node.last_allocation is not None and node.last_allocation.saturated
+        assert node.core.last_allocation is not None and node.core.last_allocation.saturated
         _spin(executor, lambda: len(probe.diagnostics) == 2)  # stamped 0 and 0.1 s
         status = conv.diagnostics_from_msg(probe.diagnostics[-1])[0]
         assert status.values["setpoints_projected"] == 10.0

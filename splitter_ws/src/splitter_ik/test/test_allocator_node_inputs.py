@@ -22,8 +22,9 @@ from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
+from splitter_ik.core.allocator_tick import MAX_BODY_RATE_RAD_S
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
-from splitter_ik.ik_tether_allocator_node import MAX_BODY_RATE_RAD_S, IkTetherAllocatorNode
+from splitter_ik.ik_tether_allocator_node import IkTetherAllocatorNode
 from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
@@ -139,14 +140,14 @@ def make_node(ros_context):
 
 
 def _snapshot(node: IkTetherAllocatorNode) -> tuple:
-    allocator_state = None if node.allocator is None else node.allocator._state
+    allocator_state = None if node.core.allocator is None else node.core.allocator._state
     return (
-        node.last_allocation,
-        node._last_good_setpoint,
-        node._last_answered_t,
+        node.core.last_allocation,
+        node.core.last_good_setpoint,
+        node.core.answered_ns,
         allocator_state,
-        node._w,
-        node._imu_t_ns,
+        node.core.angular_velocity,
+        node.core.imu_t_ns,
     )
 
 
@@ -160,13 +161,13 @@ def _assert_node_sane(node: IkTetherAllocatorNode, published: dict[str, list]) -
     assert stamps == sorted(stamps)  # never answered back in time
     for msg in published[names.DIAGNOSTICS]:
         assert_finite(msg)
-    good = node._last_good_setpoint
+    good = node.core.last_good_setpoint
     if good is not None:
         assert np.all(np.isfinite(good)) and np.all(good > 0.0)
-        assert np.all(good <= node.max_setpoint_kg_m2)
-    if node._w is not None:
-        assert np.all(np.abs(node._w) <= MAX_BODY_RATE_RAD_S)
-    a = node.last_allocation
+        assert np.all(good <= node.core.max_setpoint_kg_m2)
+    if node.core.angular_velocity is not None:
+        assert np.all(np.abs(node.core.angular_velocity) <= MAX_BODY_RATE_RAD_S)
+    a = node.core.last_allocation
     if a is not None:
         for field in ("joint_position", "joint_velocity", "radii_m", "achieved_inertia_kg_m2"):
             assert np.all(np.isfinite(getattr(a, field))), field
@@ -192,7 +193,7 @@ def test_setpoint_callback_survives_any_message(make_node, steps) -> None:
                 frame == names.BASE_FRAME
                 and bool(np.all(np.isfinite(v)))
                 and bool(np.all(v > 0.0))
-                and bool(np.all(v <= node.max_setpoint_kg_m2))
+                and bool(np.all(v <= node.core.max_setpoint_kg_m2))
             )
             event(f"answered: {answered}, content ok: {content_ok}")
             if not answered:  # a bad stamp: dropped, the node exactly as it was
@@ -202,10 +203,10 @@ def test_setpoint_callback_survives_any_message(make_node, steps) -> None:
             else:
                 assert stamp_ns(published[names.JOINT_COMMANDS][-1]) == stamp_ns(msg)
             if not content_ok:  # the last good setpoint is kept
-                assert node._last_good_setpoint is before[1]
+                assert node.core.last_good_setpoint is before[1]
                 assert total_rejections(node) == rejected_before + 1
             elif answered:
-                np.testing.assert_array_equal(node._last_good_setpoint, v)
+                np.testing.assert_array_equal(node.core.last_good_setpoint, v)
         _assert_node_sane(node, published)
 
 
@@ -245,9 +246,9 @@ def test_any_sequence_of_imu_inertia_and_setpoints(make_node, steps) -> None:
             elif kind == "imu":
                 q, w, a = content
                 node._on_imu(imu_msg(stamp, q, w, a, frame))
-                if node._w is not before[4]:  # accepted: a finite, plausible body rate
+                if node.core.angular_velocity is not before[4]:  # accepted: finite, plausible
                     assert frame == names.BASE_FRAME
-                    np.testing.assert_array_equal(node._w, w)
+                    np.testing.assert_array_equal(node.core.angular_velocity, w)
             else:
                 node._on_inertia(vector3_msg(stamp, content, frame))
             rejected = total_rejections(node) > rejected_before
@@ -276,12 +277,12 @@ def test_huge_setpoint_is_rejected_and_answered_from_the_last_good(make_node, va
     with make_node(initialize_from_measured_inertia=False) as node:
         published = record_publications(node)
         _good_ticks(node, 3)
-        good = node._last_good_setpoint
+        good = node.core.last_good_setpoint
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(3 * TICK_NS), [value] * 3))
         commands = published[names.JOINT_COMMANDS]
         assert [stamp_ns(m) for m in commands] == [0, TICK_NS, 2 * TICK_NS, 3 * TICK_NS]
-        assert node._last_good_setpoint is good
-        np.testing.assert_array_equal(node.last_allocation.requested_inertia_kg_m2, TARGET)
+        assert node.core.last_good_setpoint is good
+        np.testing.assert_array_equal(node.core.last_allocation.requested_inertia_kg_m2, TARGET)
         assert rejection_counts(node)["setpoint"] == 1
         status = node.diagnostics_status()
         assert status.values["total_warnings_setpoint"] == 1
@@ -294,7 +295,7 @@ def test_tiny_positive_setpoint_is_legal_and_projected(make_node) -> None:
         published = record_publications(node)
         _good_ticks(node, 1)
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(TICK_NS), [1e-300] * 3))
-        assert node.last_allocation.saturated
+        assert node.core.last_allocation.saturated
         assert total_rejections(node) == 0
         _assert_node_sane(node, published)
 
@@ -326,12 +327,12 @@ def test_bad_stamp_is_rejected_and_never_resets_the_allocator(
         published = record_publications(node)
         _good_ticks(node, 6)
         before = _snapshot(node)
-        state = node.allocator._state
+        state = node.core.allocator._state
         node._on_setpoint(vector3_msg(stamp, TARGET))
         node._on_imu(imu_msg(stamp, (0, 0, 0, 1), (0.0, 9.0, 0.0), (0, 0, 0)))
         node._on_inertia(vector3_msg(stamp, TARGET))
         assert all(x is y for x, y in zip(_snapshot(node), before, strict=True)), label
-        assert node.allocator._state is state
+        assert node.core.allocator._state is state
         assert len(published[names.JOINT_COMMANDS]) == 6
         assert total_rejections(node) == 3
         # the next tick continues the reference where it was: q6 = q5 + v5 dt

@@ -59,6 +59,7 @@ from splitter_ik.core.tether import (
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
+from splitter_msgs_py.core.parameter_fields import parameter_field
 
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
 KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
@@ -70,27 +71,57 @@ _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate 
 
 @dataclass(frozen=True)
 class AllocatorConfig:
-    """Allocator settings (validated on construction)."""
+    """Allocator settings (validated on construction); every field is a node parameter."""
 
-    control_period_s: float = 0.01  # [s] one command per control tick (100 Hz)
+    control_period_s: float = parameter_field(  # [s] one command per control tick (100 Hz)
+        0.01,
+        "control tick: one command per setpoint, joint velocities over this period [s]",
+        min_value=1e-4,
+        max_value=10.0,
+    )
     # [N] least tether tension kept while reeling; 1 N keeps a light tether straight
     # and is 4 % of the tension of the paper's spin (9 kg * 2.8 m * 1 rad^2/s^2).
-    tension_margin_n: float = 1.0
+    tension_margin_n: float = parameter_field(
+        1.0,
+        "least tether tension kept while reeling (the tether only pulls) [N]",
+        min_value=1e-6,
+        max_value=1e4,
+        live=True,
+    )
     # [-] share of the centripetal load kept as tension when that load is under the
     # margin (a slow spin across the tether): the requirement is then
     # ``min(tension_margin_n, fraction * M_h r_x w_perp^2)``, still taut. A reel-in
     # only adds tension (inward acceleration, then a faster spin), so a slow spin may
     # be reeled in, which is how its rate is raised. With the margin alone the tether
     # was held whenever M_h r_x w_perp^2 < 1 N (|H| < ~28 kg m^2/s at r_x = 2.8 m).
-    low_spin_tension_fraction: float = 0.5
+    low_spin_tension_fraction: float = parameter_field(
+        0.5,
+        "share of the centripetal tether load kept as tension when the load is under "
+        "tension_margin_n (slow spin across the tether) [-]",
+        min_value=1e-3,
+        max_value=1.0,
+        live=True,
+    )
     # [s] the reel follows the setpoint's mean velocity over this window (one re-plan
     # period: a new plan restarts from the measured radii) and closes the gap on top
     # of it; 0: every setpoint is approached as if it were to rest there. A reel-in is
     # braked taut, so a plan that stops its reel-in faster than the spin allows is
     # overshot. With 0, a slow spin's reel-in crept at what could stop taut at the
     # next 10 ms setpoint (2.8 -> 1.55 m in 12 s where the MPC planned 2.5 s).
-    reference_velocity_window_s: float = 0.1
-    speed_fraction: float = 1.0  # [-] share of the joint and reel speed limits used, (0, 1]
+    reference_velocity_window_s: float = parameter_field(
+        0.1,
+        "the reel follows the setpoints' mean velocity over this window (one MPC re-plan "
+        "period), braking taut; 0: each setpoint approached as a resting target [s]",
+        min_value=0.0,
+        max_value=10.0,
+        live=True,
+    )
+    speed_fraction: float = parameter_field(  # [-] share of the joint and reel speed limits
+        1.0,
+        "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    )
     # Shares of the acceleration limits commanded, (0, 1]. The limits are the actuators'
     # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
     # follows the reference needs headroom. Measured with the simulator's servos in the
@@ -98,8 +129,21 @@ class AllocatorConfig:
     # limbs at 1.0 / 0.5 / 0.25: hip-knee mismatch up to 234 / 1.3 / 0.5 mrad, least
     # tether tension -61 / -3.4 N (slack) / +38.6 N; tether at 1.0 / 0.9: the reel
     # overshoots a stop by 59 / 0.5 mm.
-    limb_acceleration_fraction: float = 0.25
-    tether_acceleration_fraction: float = 0.9
+    limb_acceleration_fraction: float = parameter_field(
+        0.25,
+        "share of the joint acceleration limit (143 rad/s^2) commanded; the rest is servo "
+        "headroom that keeps hip and knee in step [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    )
+    tether_acceleration_fraction: float = parameter_field(
+        0.9,
+        "share of the reel start-up acceleration limit (5 m/s^2) used [-]",
+        min_value=1e-3,
+        max_value=1.0,
+    )
+    # The live ones are read on every tick; the speed and acceleration shares size the
+    # limiters when the allocator is built (read-only).
 
     def __post_init__(self) -> None:
         for name in ("control_period_s", "tension_margin_n"):

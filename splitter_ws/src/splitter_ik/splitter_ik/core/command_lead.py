@@ -22,7 +22,7 @@ it skips are filled (:meth:`CommandLead.output_stamps`: one allocation per
 control period, from the latest setpoint); when it shrinks, answers pause until
 the input catches up, so stamps never go backwards. A latency of exactly 0
 (lockstep, the library loop) gives lead 0: every answer stamped with its input.
-ROS-free.
+:class:`CommandLeadConfig` holds the node's settings of it (parameters). ROS-free.
 """
 
 from __future__ import annotations
@@ -30,6 +30,45 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+
+from splitter_msgs_py.core.parameter_fields import parameter_field
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class CommandLeadConfig:
+    """Whether and how the allocator stamps its commands ahead (parameters, seconds)."""
+
+    command_lead: bool = parameter_field(
+        False,
+        "stamp commands ahead of their inputs by the latency measured, as points of a "
+        "trajectory the simulator follows at their stamps (real time; lockstep needs "
+        "each tick answered with its own stamp)",
+    )
+    command_lead_margin_s: float = parameter_field(  # [s]
+        0.002,
+        "real time: commands are stamped ahead of their input by the largest latency "
+        "measured plus this margin for their way to the simulator, in whole control "
+        "periods (lockstep: latency 0, no lead) [s]",
+        min_value=0.0,
+        max_value=1.0,
+        live=True,
+    )
+    command_lead_window_s: float = parameter_field(  # [s]
+        2.0,
+        "the command lead plans for the largest input latency of this much simulated time [s]",
+        min_value=0.0,
+        max_value=100.0,
+        live=True,
+    )
+    command_lead_max_s: float = parameter_field(  # [s]
+        0.5,
+        "longest command lead: a larger latency is followed late, not planned for [s]",
+        min_value=0.0,
+        max_value=5.0,
+        live=True,
+    )
 
 
 @dataclass
@@ -50,6 +89,13 @@ class CommandLead:
         for name in ("margin_ns", "window_ns", "max_lead_ns"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+
+    def configure(self, config: CommandLeadConfig) -> None:
+        """Take the margin, window and longest lead of ``config`` (from the next input on)."""
+        self.margin_ns = round(config.command_lead_margin_s * NS_PER_S)
+        self.window_ns = round(config.command_lead_window_s * NS_PER_S)
+        self.max_lead_ns = round(config.command_lead_max_s * NS_PER_S)
+        self.__post_init__()
 
     def record(self, input_stamp_ns: int, now_ns: int | None) -> int:
         """Record the latency of an input stamped ``input_stamp_ns`` used at ``now_ns``.
