@@ -1,7 +1,8 @@
 """Actuator limits of SPLITTER's 25 actuated coordinates, derived from a :class:`RobotModel`.
 
 8 limbs x (hip abduction, hip pitch, knee), then the prismatic tether
-(``splitter_msgs_py.names.JOINT_NAMES`` order): position range, speed and
+(:data:`splitter_model.joints.JOINT_NAMES` order; ``N_JOINTS`` and ``TETHER_INDEX``
+are that module's): position range, speed and
 acceleration bounds. The simulator's servo (``splitter_sim.core.actuators``)
 never exceeds them; the allocator plans within them.
 """
@@ -13,15 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from splitter_model.joints import N_JOINTS, N_LIMBS, TETHER_INDEX, limb_joints
 from splitter_model.model import RobotModel
-
-N_JOINTS = 25  # 8 limbs x 3 joints + the tether
-TETHER_INDEX = 24
 
 
 @dataclass(frozen=True)
 class ActuatorLimits:
-    """Per-joint bounds, arrays of length 25 in ``names.JOINT_NAMES`` order."""
+    """Per-joint bounds, arrays of length 25 in ``joints.JOINT_NAMES`` order."""
 
     position_min: NDArray[np.float64]  # [rad] / [m] tether
     position_max: NDArray[np.float64]  # [rad] / [m]
@@ -33,11 +32,17 @@ def actuator_limits(model: RobotModel) -> ActuatorLimits:
     """Joint and tether limits of ``model``."""
     lo = np.empty(N_JOINTS)
     hi = np.empty(N_JOINTS)
-    for limb in range(8):
-        k = 3 * limb
-        lo[k], hi[k] = -model.hip_abduction_limit_rad, model.hip_abduction_limit_rad
-        lo[k + 1], hi[k + 1] = -model.hip_pitch_limit_rad, model.hip_pitch_limit_rad
-        lo[k + 2], hi[k + 2] = model.knee_min_rad, model.knee_max_rad
+    for limb in range(N_LIMBS):  # (hip abduction, hip pitch, knee)
+        lo[limb_joints(limb)] = (
+            -model.hip_abduction_limit_rad,
+            -model.hip_pitch_limit_rad,
+            model.knee_min_rad,
+        )
+        hi[limb_joints(limb)] = (
+            model.hip_abduction_limit_rad,
+            model.hip_pitch_limit_rad,
+            model.knee_max_rad,
+        )
     lo[TETHER_INDEX], hi[TETHER_INDEX] = model.tether_length_min_m, model.tether_length_max_m
     speed = np.full(N_JOINTS, model.joint_speed_max_rad_s)
     speed[TETHER_INDEX] = model.tether_speed_max_m_s

@@ -21,18 +21,29 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.joints import (
+    LIMB_AXES,
+    LIMB_AXIS_OF,
+    LIMB_HEMI_SIGNS,
+    LIMB_RADIUS_INDEX,
+    N_JOINTS,
+    N_LIMBS,
+    TETHER_INDEX,
+    limb_joints,
+    limbs_along,
+)
 from splitter_model.model import RobotModel
 
 _E = np.eye(3)
-# Outward axis u of each limb, in the order of splitter_msgs_py.names.LIMB_AXES.
+# Outward axis u of each limb, in the order of splitter_model.joints.LIMB_AXES.
 LIMB_OUTWARD_AXES = (_E[1], -_E[1], _E[2], -_E[2])
+_Y_LIMBS, _Z_LIMBS = list(limbs_along("y")), list(limbs_along("z"))
 
 
 def limb_frame(limb_index: int) -> NDArray[np.float64]:
-    """Rows (u, v, w) of limb ``limb_index`` (0..7, order of ``names.LIMB_NAMES``)."""
-    sign = 1.0 if limb_index < 4 else -1.0
-    u = LIMB_OUTWARD_AXES[limb_index % 4]
-    v = sign * _E[0]
+    """Rows (u, v, w) of limb ``limb_index`` (0..7, order of ``joints.LIMB_NAMES``)."""
+    u = LIMB_OUTWARD_AXES[LIMB_AXES.index(LIMB_AXIS_OF[limb_index])]
+    v = LIMB_HEMI_SIGNS[limb_index] * _E[0]
     return np.stack([u, v, np.cross(u, v)])
 
 
@@ -99,16 +110,15 @@ def radial_limb_joint_angles(model: RobotModel, radius_m: float) -> NDArray[np.f
 
 
 def joint_positions_from_radii(model: RobotModel, radii_m: ArrayLike) -> NDArray[np.float64]:
-    """All 25 joint positions (order of ``names.JOINT_NAMES``) for symmetric radii.
+    """All 25 joint positions (order of ``joints.JOINT_NAMES``) for symmetric radii.
 
     Limb joints [rad] for r_y (y limbs) and r_z (z limbs); tether [m] = 2 r_x.
     """
-    rx, ry, rz = (float(v) for v in np.asarray(radii_m, dtype=float))
-    q = np.zeros(25)
-    for limb in range(8):
-        radius = ry if limb % 4 < 2 else rz
-        q[3 * limb : 3 * limb + 3] = radial_limb_joint_angles(model, radius)
-    q[24] = 2.0 * rx
+    radii = [float(v) for v in np.asarray(radii_m, dtype=float)]
+    q = np.zeros(N_JOINTS)
+    for limb in range(N_LIMBS):
+        q[limb_joints(limb)] = radial_limb_joint_angles(model, radii[LIMB_RADIUS_INDEX[limb]])
+    q[TETHER_INDEX] = 2.0 * radii[0]
     return q
 
 
@@ -118,7 +128,7 @@ def limb_offsets_from_joint_positions(
     """Tip offsets (8, 3) [m] from each hemi body, from the 24 limb joint angles."""
     q = np.asarray(joint_positions, dtype=float)
     return np.stack(
-        [limb_forward_kinematics(model, limb, q[3 * limb : 3 * limb + 3]) for limb in range(8)]
+        [limb_forward_kinematics(model, limb, q[limb_joints(limb)]) for limb in range(N_LIMBS)]
     )
 
 
@@ -129,6 +139,6 @@ def radii_from_joint_positions(
     q = np.asarray(joint_positions, dtype=float)
     offsets = limb_offsets_from_joint_positions(model, q)
     reach = np.linalg.norm(offsets, axis=1)
-    ry = float(np.mean(reach[[0, 1, 4, 5]]))
-    rz = float(np.mean(reach[[2, 3, 6, 7]]))
-    return np.array([q[24] / 2.0, ry, rz])
+    ry = float(np.mean(reach[_Y_LIMBS]))
+    rz = float(np.mean(reach[_Z_LIMBS]))
+    return np.array([q[TETHER_INDEX] / 2.0, ry, rz])

@@ -237,7 +237,7 @@ def lumped_mass_positions(
     Order per hemi (a then b): body, limb y_pos, limb y_neg, limb z_pos, limb z_neg.
     With ``limb_offsets_m`` (8, 3) the limb masses sit at hemi body + offset instead
     of on the principal axes (general, asymmetric configurations; order of
-    ``splitter_msgs_py.names.LIMB_NAMES``). The centre of mass is at the origin
+    ``splitter_model.joints.LIMB_NAMES``). The centre of mass is at the origin
     only for symmetric configurations: use :func:`inertia_tensor` for the general case.
     """
     rx, ry, rz = (float(v) for v in np.asarray(radii_m, dtype=float))
