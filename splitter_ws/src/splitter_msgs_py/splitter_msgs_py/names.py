@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Final
 
+from splitter_model import joints as _joints
+
 # --- topics (DESIGN.md section 4; do not rename) -----------------------------
 CLOCK: Final = "/clock"
 IMU: Final = "/splitter/imu"
@@ -59,17 +61,14 @@ HEMI_FRAMES: Final = ("hemi_a", "hemi_b")
 GAIT_PHASES: Final = ("LAUNCH", "IN_FLIGHT", "JUMP", "LANDING", "LANDED")
 
 # --- joints ----------------------------------------------------------------------
-# Hemi "a" sits at +x (sign s = +1), hemi "b" at -x (s = -1).
-HEMIS: Final = ("a", "b")
-HEMI_SIGNS: Final[dict[str, float]] = {"a": 1.0, "b": -1.0}
-# Each hemi has four limbs; a limb is named by the body axis it reaches along.
-LIMB_AXES: Final = ("y_pos", "y_neg", "z_pos", "z_neg")
-LIMB_NAMES: Final = tuple(f"hemi_{h}_{axis}" for h in HEMIS for axis in LIMB_AXES)
-LIMB_JOINTS: Final = ("hip_abduction", "hip_pitch", "knee")
-TETHER_JOINT: Final = "tether"  # prismatic: distance between the two hemi bodies [m]
-JOINT_NAMES: Final = (
-    *(f"{limb}_{joint}" for limb in LIMB_NAMES for joint in LIMB_JOINTS),
-    TETHER_JOINT,
-)
-JOINT_INDEX: Final[dict[str, int]] = {name: i for i, name in enumerate(JOINT_NAMES)}
-N_JOINTS: Final = len(JOINT_NAMES)  # 8 limbs x 3 joints + tether = 25
+# The robot model's, defined once (splitter_model.joints): joint names and order,
+# limbs, hemis (hemi "a" at +x, "b" at -x) and each joint's index by name.
+HEMIS: Final = _joints.HEMIS
+HEMI_SIGNS: Final = _joints.HEMI_SIGNS
+LIMB_AXES: Final = _joints.LIMB_AXES
+LIMB_NAMES: Final = _joints.LIMB_NAMES
+LIMB_JOINTS: Final = _joints.LIMB_JOINTS
+TETHER_JOINT: Final = _joints.TETHER_JOINT
+JOINT_NAMES: Final = _joints.JOINT_NAMES
+JOINT_INDEX: Final = _joints.JOINT_INDEX
+N_JOINTS: Final = _joints.N_JOINTS  # 8 limbs x 3 joints + tether = 25
