@@ -9,9 +9,8 @@ as it was (counted as a rejection), and everything the node publishes is finite.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -19,7 +18,6 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Vector3Stamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
 from splitter_ik.core.allocator_tick import MAX_BODY_RATE_RAD_S
@@ -29,8 +27,15 @@ from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS
-from splitter_msgs_py.inspection import non_finite_fields, record_publications
+from splitter_msgs_py.inspection import record_publications
 from splitter_msgs_py.parameters import rejection_counts
+from splitter_msgs_py.testing import (
+    ANY_FLOAT,
+    ANY_TEXT,
+    ANY_VECTOR3,
+    assert_finite,
+    node_under_test,
+)
 
 # An overflow inside a callback means an implausible number got past validation.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
@@ -40,24 +45,6 @@ TICK_NS = 10_000_000  # [ns] the allocator's control period
 NS_PER_S = 1_000_000_000
 TARGET = principal_inertia(MODEL, [2.0, 0.3, 0.15])  # [kg m^2] a reachable setpoint
 
-SPECIAL_FLOATS = (
-    math.nan,
-    math.inf,
-    -math.inf,
-    1e300,
-    -1e300,
-    1e-300,
-    -1e-300,
-    0.0,
-    -0.0,
-    5e-324,
-    1.7976931348623157e308,
-    -1.7976931348623157e308,
-)
-ANY_FLOAT = st.one_of(st.floats(), st.sampled_from(SPECIAL_FLOATS))
-ANY_VECTOR3 = st.tuples(ANY_FLOAT, ANY_FLOAT, ANY_FLOAT)
-# Any string a DDS message can carry (no lone surrogates: they are not UTF-8).
-ANY_TEXT = st.text(st.characters(blacklist_categories=("Cs",)), max_size=12)
 FRAME = st.one_of(st.just(names.BASE_FRAME), st.sampled_from([names.WORLD_FRAME, ""]), ANY_TEXT)
 PLAUSIBLE_INERTIA = st.tuples(*[st.floats(0.1, 200.0)] * 3)  # [kg m^2]
 # A stamp: k ticks after the newest "next" stamp of the example, zero, or raw fields.
@@ -87,11 +74,6 @@ class Clock:
         if spec[0] == "zero":
             return Time()
         return Time(sec=spec[1], nanosec=spec[2])
-
-
-def assert_finite(msg: object, path: str = "msg") -> None:
-    """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    assert non_finite_fields(msg, path) == []
 
 
 def total_rejections(node) -> int:
@@ -126,17 +108,7 @@ def stamp_ns(msg) -> int:
 @pytest.fixture
 def make_node(ros_context):
     """Builds a node that lives for one hypothesis example (``with make_node() as node``)."""
-
-    @contextmanager
-    def make(**parameters) -> Iterator[IkTetherAllocatorNode]:
-        overrides = [Parameter(k, value=v) for k, v in parameters.items()]
-        node = IkTetherAllocatorNode(context=ros_context, parameter_overrides=overrides)
-        try:
-            yield node
-        finally:
-            node.destroy_node()
-
-    return make
+    return functools.partial(node_under_test, IkTetherAllocatorNode, ros_context)
 
 
 def _snapshot(node: IkTetherAllocatorNode) -> tuple:
