@@ -32,6 +32,10 @@ ATTITUDE_REFERENCE_POSE: Final = "/splitter/attitude_reference_pose"
 CONTACT_WRENCH_A: Final = "/splitter/hemi_a/contact_wrench"
 CONTACT_WRENCH_B: Final = "/splitter/hemi_b/contact_wrench"
 CONTACT_WRENCHES: Final = (CONTACT_WRENCH_A, CONTACT_WRENCH_B)
+# The scene's lumped masses (world frame, index order of splitter_sim.core.scene),
+# geometry_msgs/PoseArray on the markers grid: with odom, inertia, imu and the contact
+# wrenches, the whole scene as data (splitter_sim.messages).
+SCENE_MASSES: Final = "/splitter/scene/masses"
 
 # Fully qualified ROS type names, as rosbag2 writes them.
 TOPIC_TYPES: Final[dict[str, str]] = {
@@ -49,6 +53,7 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     CONTACT_WRENCH_B: "geometry_msgs/msg/WrenchStamped",
     JUMP_COMMAND: "geometry_msgs/msg/WrenchStamped",
     MARKERS: "visualization_msgs/msg/MarkerArray",
+    SCENE_MASSES: "geometry_msgs/msg/PoseArray",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
 }
 

@@ -256,11 +256,11 @@ def test_jump_command_torque_selects_the_pushing_hemi(graph) -> None:
     context, executor, add = graph
     sim = add(_simulator(context, duration_s=0.01, gravity="moon"))
     _spin(executor, sim.finished.done)
-    state = sim._last_state
+    state = sim.tick.last_published
     assert state is not None
     force = np.array([40.0, 0.0, 40.0])
     lever_b = state.mass_positions_world_m[5] - state.position_m
     lever_a = state.mass_positions_world_m[0] - state.position_m
-    assert pushing_hemi(sim._last_state, force, np.cross(lever_b, force)) == "b"
-    assert pushing_hemi(sim._last_state, force, np.cross(lever_a, force)) == "a"
-    assert pushing_hemi(sim._last_state, force, np.zeros(3)) == "auto"
+    assert pushing_hemi(sim.tick.last_published, force, np.cross(lever_b, force)) == "b"
+    assert pushing_hemi(sim.tick.last_published, force, np.cross(lever_a, force)) == "a"
+    assert pushing_hemi(sim.tick.last_published, force, np.zeros(3)) == "auto"

@@ -174,8 +174,8 @@ def make_node(ros_context):
 
 def _step(node: SimulatorNode, n: int) -> None:
     for _ in range(n):
-        node._sim.step()
-        node._publish_state(node._sim.time_ns)
+        node.tick.step()
+        node._publish_state()
 
 
 def _stamp_ok(stamp: Time, now_ns: int, last_ns: int | None) -> bool:
@@ -190,8 +190,8 @@ def _stamp_ok(stamp: Time, now_ns: int, last_ns: int | None) -> bool:
 def test_command_callbacks_survive_any_message(make_node, steps) -> None:
     with make_node() as node:
         published = record_publications(node)
-        sim = node._sim
-        node._publish_state(0)
+        sim = node.tick.sim
+        node._publish_state()
         last: dict[str, int | None] = {names.JOINT_COMMANDS: None, names.JUMP_COMMAND: None}
         for kind, spec, content in steps:
             if kind == "step":
@@ -201,7 +201,7 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
             stamp = make_stamp(spec, now)
             topic = names.JOINT_COMMANDS if kind == "joints" else names.JUMP_COMMAND
             stamp_ok = _stamp_ok(stamp, now, last[topic])
-            arrived_before = node.lockstep.stamps[topic]
+            arrived_before = node.tick.lockstep.stamps[topic]
             cmd_before = (sim._cmd_q, sim._cmd_qd, sim._jump_force)
             rejected_before = rejections(node)
             if kind == "joints":
@@ -213,12 +213,12 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
             event(f"{kind}: {'applied' if changed else 'rejected'}")
             if not stamp_ok:  # dropped: not applied, not a lockstep answer
                 assert not changed
-                assert node.lockstep.stamps[topic] == arrived_before
+                assert node.tick.lockstep.stamps[topic] == arrived_before
                 assert rejections(node) == rejected_before + 1
                 continue
             t = conv.stamp_from_msg(stamp)
             last[topic] = t
-            assert node.lockstep.stamps[topic] == t  # answers its tick, good or bad
+            assert node.tick.lockstep.stamps[topic] == t  # answers its tick, good or bad
             if not changed:
                 assert rejections(node) == rejected_before + 1
             elif kind == "joints":
@@ -261,15 +261,15 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
     """After a good command at t = 20 ms, a command stamped 0, earlier, or ahead of the
     simulated time neither changes the commands in force nor answers a lockstep tick."""
     with make_node() as node:
-        sim = node._sim
-        node._publish_state(0)
+        sim = node.tick.sim
+        node._publish_state()
         _step(node, 4)
         now = sim.time_ns
         good = joint_positions_from_radii(MODEL, (2.7, 0.25, 0.18))
         node._on_joint_commands(conv.joint_state_to_msg(now, good))
         node._on_jump_command(conv.wrench_to_msg(now, (0.0, 0.0, 5.0)))
         q, force = sim._cmd_q, sim._jump_force
-        assert node.lockstep.stamps == dict.fromkeys(node.lockstep.stamps, now)
+        assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now)
         other = joint_positions_from_radii(MODEL, (2.0, 0.3, 0.3))
         bad_joint = conv.joint_state_to_msg(0, other)
         bad_joint.header.stamp = stamp_of(now)
@@ -278,7 +278,7 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
         node._on_joint_commands(bad_joint)
         node._on_jump_command(bad_jump)
         assert sim._cmd_q is q and sim._jump_force is force, label
-        assert node.lockstep.stamps == dict.fromkeys(node.lockstep.stamps, now), label
+        assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now), label
         assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
 
 
@@ -288,10 +288,10 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
 )
 def test_huge_jump_wrench_is_rejected_but_answers_its_tick(make_node, force, torque) -> None:
     with make_node() as node:
-        node._publish_state(0)
+        node._publish_state()
         node._on_jump_command(jump_msg(Time(), names.WORLD_FRAME, force, torque))
-        assert node._sim._jump_force == (0.0, 0.0, 0.0)
-        assert node.lockstep.stamps[names.JUMP_COMMAND] == 0
+        assert node.tick.sim._jump_force == (0.0, 0.0, 0.0)
+        assert node.tick.lockstep.stamps[names.JUMP_COMMAND] == 0
         assert rejection_counts(node) == {"jump_command": 1}
 
 
@@ -319,36 +319,36 @@ def test_real_time_queues_a_point_stamped_ahead_and_applies_it_at_its_stamp(make
         _step(node, 2)  # t = 10 ms
         ahead = 30_000_000
         node._on_joint_commands(_joint_command(ahead, (2.7, 0.2, 0.2), -0.1))
-        assert len(node._queue) == 1
-        assert node._sim._cmd_t_ns == 0  # not in force yet
-        while node._sim.time_ns < ahead:
-            node._step()
-            node._publish_state(node._sim.time_ns)
-        node._step()  # the step from the stamp applies it first
-        assert node._sim._cmd_t_ns == ahead and len(node._queue) == 0
-        assert node._late_joint_commands == 0
+        assert len(node.tick.queue) == 1
+        assert node.tick.sim._cmd_t_ns == 0  # not in force yet
+        while node.tick.sim.time_ns < ahead:
+            node.tick.step()
+            node._publish_state()
+        node.tick.step()  # the step from the stamp applies it first
+        assert node.tick.sim._cmd_t_ns == ahead and len(node.tick.queue) == 0
+        assert node.tick.late_joint_commands == 0
         # a point earlier than the one in force, or too far ahead, is refused (counted)
         node._on_joint_commands(_joint_command(ahead - DT_NS, (2.7, 0.2, 0.2), 0.0))
         node._on_joint_commands(
-            _joint_command(node._sim.time_ns + 10 * NS_PER_S, (2.7, 0.2, 0.2), 0.0)
+            _joint_command(node.tick.sim.time_ns + 10 * NS_PER_S, (2.7, 0.2, 0.2), 0.0)
         )
         assert rejection_counts(node)["joint_commands"] == 2
-        assert node._sim._cmd_t_ns == ahead
+        assert node.tick.sim._cmd_t_ns == ahead
 
 
 def test_real_time_a_late_point_is_followed_from_its_stamp_and_counted(make_node) -> None:
     with make_node(mode="real_time", command_extrapolation_s=0.25) as node:
         _step(node, 4)  # t = 20 ms
         node._on_joint_commands(_joint_command(10_000_000, (2.7, 0.2, 0.2), -0.1))
-        assert node._late_joint_commands == 1
-        assert node._sim._cmd_t_ns == 10_000_000  # its stamp, not its arrival
-        values = node._latency.values()
+        assert node.tick.late_joint_commands == 1
+        assert node.tick.sim._cmd_t_ns == 10_000_000  # its stamp, not its arrival
+        values = node.tick.latency.values()
         assert values["latency_joint_commands_last_ms"] == pytest.approx(10.0)
 
 
 def test_lockstep_refuses_a_point_stamped_ahead(make_node) -> None:
     with make_node() as node:
         _step(node, 2)
-        node._on_joint_commands(_joint_command(node._sim.time_ns + DT_NS, (2.7, 0.2, 0.2), 0.0))
+        node._on_joint_commands(_joint_command(node.tick.sim.time_ns + DT_NS, (2.7, 0.2, 0.2), 0.0))
         assert rejection_counts(node)["joint_commands"] == 1
-        assert len(node._queue) == 0
+        assert len(node.tick.queue) == 0

@@ -1,17 +1,21 @@
-"""The 3D scene of a flight in the world frame: masses, tether, limbs and arrows (ROS-free).
+"""The 3D scene of a flight in the world frame: masses, tether, limbs, contacts, ground (ROS-free).
 
-Shared by the Foxglove bridge (:mod:`splitter_bringup.foxglove_bridge_node`, which
-turns it into ``visualization_msgs/Marker`` arrows) and the animation
-(:mod:`splitter_bringup.core.animation`).
+:class:`Scene` is the scene as data, built by :func:`scene_from_pose` (from a
+simulator state, :func:`scene_of_state`; from the graph's messages; from a recorded
+series). The simulator publishes it (``/splitter/scene/masses`` beside the pose,
+inertia, rate and contact wrench topics) and draws ``/splitter/markers`` from it;
+the Foxglove bridge (:mod:`splitter_bringup.foxglove_bridge_node`) and the
+animation (:mod:`splitter_bringup.core.animation`) draw it too.
 
 * Mass positions: the simulator's own geometry (:class:`splitter_sim.core.shape.ShapeKinematics`)
   from the 25 joint positions, about the centre of mass, rotated and moved by the
-  odometry pose. Index 0 is hemi a's body, 1..4 its limb tips (``names.LIMB_AXES``
-  order), 5 hemi b's body, 6..9 its limb tips, as in the simulator's markers.
+  odometry pose (:class:`SceneGeometry`). Index 0 is hemi a's body, 1..4 its limb tips
+  (``names.LIMB_AXES`` order), 5 hemi b's body, 6..9 its limb tips.
 * Arrows: the body axes (x red, y green, z blue), the world angular momentum
   ``H = R diag(I) w`` (principal inertia as published on ``/splitter/inertia``; the
   products of inertia of the symmetric shapes are left out) and each hemi's ground
   contact force, drawn from the hemi's lowest mass.
+* Ground: :class:`Ground`, today the plane z = 0.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
 from splitter_sim.core.shape import BODY_INDICES, ShapeKinematics
+from splitter_sim.core.simulator import SimState
 
 N_MASSES = 10
 HEMI_MASSES = ((0, 1, 2, 3, 4), (5, 6, 7, 8, 9))  # mass indices of hemi a and hemi b
@@ -126,10 +131,10 @@ def contact_arrows(mass_positions_world: ArrayLike, contact_forces_n: ArrayLike)
     positions = np.asarray(mass_positions_world, dtype=float).reshape(N_MASSES, 3)
     forces = np.asarray(contact_forces_n, dtype=float).reshape(2, 3)
     out = []
-    for hemi, (label, indices) in enumerate(zip("ab", HEMI_MASSES, strict=True)):
+    for hemi, label in enumerate("ab"):
         if not np.all(np.isfinite(forces[hemi])) or np.linalg.norm(forces[hemi]) < MIN_FORCE_N:
             continue
-        lowest = positions[list(indices)][np.argmin(positions[list(indices), 2])]
+        lowest = lowest_mass(positions, hemi)
         out.append(
             Arrow(f"contact_{label}", lowest, lowest + FORCE_SCALE_M * forces[hemi], CONTACT_COLOR)
         )
@@ -152,3 +157,121 @@ def scene_arrows(
     if mass_positions_world is not None and contact_forces_n is not None:
         arrows += contact_arrows(mass_positions_world, contact_forces_n)
     return arrows
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The ground, world frame: today the plane ``z = height_m`` (normal +z).
+
+    A slope or a height map would add its description here and answer
+    :meth:`height_at` from it; the views draw the ground through this object.
+    """
+
+    height_m: float = 0.0  # [m]
+
+    def height_at(self, x_m: float, y_m: float) -> float:
+        """Ground height under the world point (x, y) [m]."""
+        return self.height_m
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The robot and its surroundings at one instant, world frame [m]: what every view draws.
+
+    Built by :func:`scene_from_pose` (from a state, messages or a recorded series);
+    the simulator node's markers, the Foxglove bridge and the animation draw it.
+    """
+
+    t_ns: int  # [ns] simulated time
+    position_m: NDArray[np.float64]  # (3,) centre of mass [m]
+    orientation_wxyz: NDArray[np.float64]  # (4,) world <- base (the hemis' frames too)
+    mass_positions_m: NDArray[np.float64]  # (10, 3) lumped masses (module docstring order)
+    angular_momentum_kg_m2_s: NDArray[np.float64]  # (3,) world, H = R diag(I) w [kg m^2/s]
+    contact_forces_n: NDArray[np.float64] | None = None  # (2, 3) ground on hemi a, b [N]
+    contact_torques_n_m: NDArray[np.float64] | None = None  # (2, 3) about each hemi body [N m]
+    ground: Ground | None = None  # None: no ground (free flight)
+
+    @property
+    def hemi_centres_m(self) -> NDArray[np.float64]:
+        """(2, 3) hemi a and hemi b body positions [m]."""
+        return self.mass_positions_m[list(BODY_INDICES)]
+
+    @property
+    def tether_m(self) -> NDArray[np.float64]:
+        """(2, 3) the tether's ends: the two hemi bodies [m]."""
+        return self.hemi_centres_m
+
+    @property
+    def limb_segments_m(self) -> NDArray[np.float64]:
+        """(8, 2, 3) (body, tip) of each limb, in :data:`LIMB_SEGMENTS` order [m]."""
+        return self.mass_positions_m[np.array(LIMB_SEGMENTS)]
+
+    @property
+    def contact_points_m(self) -> NDArray[np.float64]:
+        """(2, 3) where each hemi meets the ground: its lowest mass [m]."""
+        return np.array([lowest_mass(self.mass_positions_m, hemi) for hemi in (0, 1)])
+
+    @property
+    def arrows(self) -> tuple[Arrow, ...]:
+        """Body axes, angular momentum and (when known) the contact forces."""
+        arrows = body_axes(self.position_m, self.orientation_wxyz)
+        arrows.append(momentum_arrow(self.position_m, self.angular_momentum_kg_m2_s))
+        if self.contact_forces_n is not None:
+            arrows += contact_arrows(self.mass_positions_m, self.contact_forces_n)
+        return tuple(arrows)
+
+
+def lowest_mass(mass_positions_world: ArrayLike, hemi: int) -> NDArray[np.float64]:
+    """(3,) the lowest of hemi ``hemi``'s five masses [m]."""
+    positions = np.asarray(mass_positions_world, dtype=float).reshape(N_MASSES, 3)
+    own = positions[list(HEMI_MASSES[hemi])]
+    return own[np.argmin(own[:, 2])]
+
+
+def _array(value: ArrayLike | None, shape: tuple[int, ...]) -> NDArray[np.float64] | None:
+    if value is None:
+        return None
+    out = np.array(value, dtype=float).reshape(shape)
+    out.flags.writeable = False
+    return out
+
+
+def scene_from_pose(
+    t_ns: int,
+    position_m: ArrayLike,
+    orientation_wxyz: ArrayLike,
+    *,
+    mass_positions_world: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    contact_forces_n: ArrayLike | None = None,
+    contact_torques_n_m: ArrayLike | None = None,
+    ground: Ground | None = None,
+) -> Scene:
+    """The scene of one instant: pose, masses, principal inertia, body rate, contacts."""
+    h = angular_momentum_world(orientation_wxyz, principal_inertia_kg_m2, angular_velocity_rad_s)
+    return Scene(
+        t_ns=int(t_ns),
+        position_m=_array(position_m, (3,)),
+        orientation_wxyz=_array(orientation_wxyz, (4,)),
+        mass_positions_m=_array(mass_positions_world, (N_MASSES, 3)),
+        angular_momentum_kg_m2_s=_array(h, (3,)),
+        contact_forces_n=_array(contact_forces_n, (2, 3)),
+        contact_torques_n_m=_array(contact_torques_n_m, (2, 3)),
+        ground=ground,
+    )
+
+
+def scene_of_state(state: SimState, ground: Ground | None = None) -> Scene:
+    """The scene of a simulator state (``ground``: the simulator's, None without contact)."""
+    return scene_from_pose(
+        state.t_ns,
+        state.position_m,
+        state.orientation_wxyz,
+        mass_positions_world=state.mass_positions_world_m,
+        principal_inertia_kg_m2=state.principal_inertia_kg_m2,
+        angular_velocity_rad_s=state.angular_velocity_rad_s,
+        contact_forces_n=state.contact_force_n,
+        contact_torques_n_m=state.contact_torque_n_m,
+        ground=ground,
+    )

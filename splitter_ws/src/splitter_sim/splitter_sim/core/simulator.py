@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, actuator_limits
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
+from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
 from splitter_sim.core.legs import LegImpedance, leg_stance_force
 from splitter_sim.core.rigid_body import (
@@ -95,29 +96,83 @@ class SimConfig:
     ground, the limb length the paper sizes the push-off with (section IV).
     """
 
-    dt_s: float = 0.005  # [s] paper Table I
-    gravity_m_s2: float = 0.0  # [m/s^2] magnitude, along -z world
-    ground_contact: bool = True
-    contact_stiffness_n_m: float = 5.0e4  # [N/m] per mass
-    contact_damping_n_s_m: float = 1.0e3  # [N s/m] per mass
-    friction_coefficient: float = 0.8  # [-] Coulomb mu
-    friction_damping_n_s_m: float = 1.0e3  # [N s/m] regularisation slope below the cone
-    contact_substeps: int = 2  # RK4 sub-steps per step while a mass can touch the ground
-    thrust_stroke_m: float = 0.4  # [m] leg push-off stroke (paper's 0.4 m limb)
+    dt_s: float = parameter_field(
+        0.005, "simulation step [s] (paper Table I)", min_value=1e-4, max_value=0.05
+    )
+    gravity_m_s2: float = 0.0  # [m/s^2] magnitude, along -z world (the node's ``gravity``)
+    ground_contact: bool = parameter_field(True, "spring-damper ground plane at z = 0")
+    contact_stiffness_n_m: float = parameter_field(
+        5.0e4, "ground stiffness per lumped mass [N/m]", min_value=1.0, max_value=1e8
+    )
+    contact_damping_n_s_m: float = parameter_field(
+        1.0e3, "ground damping per lumped mass [N s/m]", min_value=0.0, max_value=1e6
+    )
+    friction_coefficient: float = parameter_field(
+        0.8, "Coulomb friction coefficient mu [-]", min_value=0.0, max_value=10.0
+    )
+    friction_damping_n_s_m: float = parameter_field(
+        1.0e3,
+        "slope of the regularised friction law below the cone [N s/m]",
+        min_value=1e-3,
+        max_value=1e6,
+    )
+    contact_substeps: int = parameter_field(
+        2,
+        "RK4 sub-steps per step while a mass can touch the ground [-]",
+        min_value=1,
+        max_value=100,
+    )
+    thrust_stroke_m: float = parameter_field(
+        0.4,  # the paper's 0.4 m limb
+        "leg push-off stroke: a hemi pushes while within this height of the ground [m]",
+        min_value=0.0,
+        max_value=10.0,
+    )
     # Compliant legs (splitter_sim.core.legs): off, the lumped masses touch the ground directly.
-    compliant_legs: bool = False
-    leg_stiffness_n_m: float = 40.0  # [N/m] a lunar hemi (14.6 N) stands crouched, 4 cm up
-    leg_damping_n_s_m: float = 200.0  # [N s/m] 0.95 m/s down saturates the force cap
-    leg_tangential_damping_n_s_m: float = 20.0  # [N s/m] hip impedance, feet planted
-    leg_force_max_n: float = 190.0  # [N] below the limbs' 196 N dynamic limit (paper VII.C)
-    # [s] a joint command's velocity is followed this long past its stamp when no newer
-    # point comes (then its position is held). Lockstep: a point every control period.
-    # Real time: long enough for a late point (actuators.command_target).
-    command_extrapolation_s: float = actuators.COMMAND_EXTRAPOLATION_S
-    # [s] a corner of the piecewise-linear joint trajectory whose next point is known in
-    # time (queued ahead: real time) is rounded by a parabolic blend this long, so the
-    # servos see a reference with continuous velocity; 0: corners followed as they come
-    knot_blend_s: float = 0.0
+    compliant_legs: bool = parameter_field(
+        False, "stance legs under impedance control over the stroke (splitter_sim.core.legs)"
+    )
+    leg_stiffness_n_m: float = parameter_field(
+        40.0,  # a lunar hemi (14.6 N) stands crouched, 4 cm up
+        "stiffness of a hemi's legs in stance [N/m]",
+        min_value=0.0,
+        max_value=1e6,
+    )
+    leg_damping_n_s_m: float = parameter_field(
+        200.0,  # 0.95 m/s down saturates the force cap
+        "vertical damping of a hemi's legs in stance [N s/m]",
+        min_value=0.0,
+        max_value=1e6,
+    )
+    leg_tangential_damping_n_s_m: float = parameter_field(
+        20.0,  # hip impedance, feet planted
+        "horizontal damping of a hemi's legs in stance (feet planted) [N s/m]",
+        min_value=0.0,
+        max_value=1e6,
+    )
+    leg_force_max_n: float = parameter_field(
+        190.0,  # below the limbs' 196 N dynamic limit (paper VII.C)
+        "largest stance force of a hemi's legs (limbs' dynamic limit) [N]",
+        min_value=1e-3,
+        max_value=1e5,
+    )
+    # Lockstep: a point every control period. Real time: long enough for a late point
+    # (actuators.command_target).
+    command_extrapolation_s: float = parameter_field(
+        actuators.COMMAND_EXTRAPOLATION_S,
+        "a joint command's velocity is followed this long past its stamp when no newer "
+        "point arrives, then its position is held (real time: cover a late point) [s]",
+        min_value=0.0,
+        max_value=10.0,
+    )
+    # Real time: the servos then see a reference with continuous velocity.
+    knot_blend_s: float = parameter_field(
+        0.0,
+        "a corner of the joint trajectory whose next point is queued ahead (real time) "
+        "is rounded by a parabolic blend this long (0: off) [s]",
+        min_value=0.0,
+        max_value=1.0,
+    )
 
     def __post_init__(self) -> None:
         _positive("dt_s", self.dt_s)

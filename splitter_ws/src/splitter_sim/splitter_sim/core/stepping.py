@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from splitter_msgs_py.core.stamps import MessageValidationError
 from splitter_sim.core.simulator import HEMI_BODY_INDEX, SimState
 
 MAX_JUMP_FORCE_N = 1.0e4  # [N] a jump command beyond this is rejected as out of range
@@ -164,19 +165,19 @@ class CommandQueue:
 
 
 def check_trajectory_stamp(stamp_ns: int, applied_ns: int, now_ns: int, max_lead_ns: int) -> None:
-    """Raise ``ValueError`` unless a trajectory point stamped ``stamp_ns`` may be used.
+    """Raise ``MessageValidationError`` unless a trajectory point stamped ``stamp_ns`` may be used.
 
     A point may re-plan what is queued (an earlier stamp than the last point
     received), but not what is already followed: it must not be earlier than the
     point in effect (``applied_ns``), nor more than ``max_lead_ns`` ahead of ``now_ns``.
     """
     if stamp_ns < applied_ns:
-        raise ValueError(
+        raise MessageValidationError(
             f"header.stamp: {stamp_ns * 1e-9:.9f} s is earlier than the point in effect "
             f"({applied_ns * 1e-9:.9f} s)"
         )
     if stamp_ns > now_ns + max_lead_ns:
-        raise ValueError(
+        raise MessageValidationError(
             f"header.stamp: {stamp_ns * 1e-9:.9f} s is more than {max_lead_ns * 1e-9:g} s "
             f"ahead of the simulated time {now_ns * 1e-9:.9f} s"
         )

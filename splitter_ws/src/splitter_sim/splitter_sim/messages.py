@@ -1,0 +1,131 @@
+"""The simulator's state and scene as ROS messages (and the scene's masses back).
+
+* :func:`state_messages`: a :class:`~splitter_sim.core.simulator.SimState` as the
+  messages of one step, per topic, in publishing order.
+* :func:`scene_markers`: ``/splitter/markers`` (``visualization_msgs/MarkerArray``,
+  world frame): 10 mass spheres (ns ``splitter_masses``, id = mass index), the
+  tether (``splitter_tether``) and limb lines (``splitter_limbs``), and the scene's
+  arrows (``splitter_arrows``: body axes, angular momentum, contact forces).
+* :func:`masses_to_msg` / :func:`masses_from_msg`: ``/splitter/scene/masses``
+  (``geometry_msgs/PoseArray``, world frame): the ten lumped masses in index
+  order, each oriented as the base frame. With the odometry, ``/splitter/inertia``,
+  the IMU rate and the contact wrenches it gives the whole scene
+  (:func:`splitter_sim.core.scene.scene_from_pose`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, PoseArray
+from numpy.typing import NDArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+from splitter_msgs_py import conversions as cv
+from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import MessageValidationError
+from splitter_sim.core.scene import BODY_INDICES, N_MASSES, Scene
+from splitter_sim.core.simulator import SimState
+
+MASS_NS = "splitter_masses"
+BODY_SIZE_M = 0.25  # [m] sphere diameter of a hemi body
+TIP_SIZE_M = 0.15  # [m] sphere diameter of a limb tip
+HEMI_RGBA = ((0.9, 0.4, 0.1, 1.0), (0.1, 0.5, 0.9, 1.0))  # hemi a, hemi b
+TETHER_WIDTH_M = 0.02  # [m] line width
+LIMB_WIDTH_M = 0.03  # [m] line width
+ARROW_SCALE_M = (0.03, 0.06, 0.1)  # [m] shaft, head width, head length
+
+
+def _point(p: Sequence[float]) -> Point:
+    return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+
+
+def _marker(stamp: object, ns: str, marker_id: int, kind: int) -> Marker:
+    m = Marker()
+    m.header.stamp = stamp
+    m.header.frame_id = names.WORLD_FRAME
+    m.ns = ns
+    m.id = marker_id
+    m.type = kind
+    m.action = Marker.ADD
+    m.pose.orientation.w = 1.0
+    return m
+
+
+def scene_markers(scene: Scene) -> MarkerArray:
+    """The markers of ``scene``, stamped with its time (module docstring)."""
+    stamp = cv.stamp_to_msg(scene.t_ns)
+    out = MarkerArray()
+    for i, p in enumerate(scene.mass_positions_m):
+        m = _marker(stamp, MASS_NS, i, Marker.SPHERE)
+        m.pose.position = _point(p)
+        m.scale.x = m.scale.y = m.scale.z = BODY_SIZE_M if i in BODY_INDICES else TIP_SIZE_M
+        m.color.r, m.color.g, m.color.b, m.color.a = HEMI_RGBA[i >= N_MASSES // 2]
+        out.markers.append(m)
+    tether = _marker(stamp, "splitter_tether", 0, Marker.LINE_STRIP)
+    tether.scale.x = TETHER_WIDTH_M
+    tether.color.r = tether.color.g = tether.color.b = 0.8
+    tether.color.a = 1.0
+    tether.points = [_point(p) for p in scene.tether_m]
+    out.markers.append(tether)
+    limbs = _marker(stamp, "splitter_limbs", 0, Marker.LINE_LIST)
+    limbs.scale.x = LIMB_WIDTH_M
+    limbs.color.r, limbs.color.g, limbs.color.b, limbs.color.a = 0.3, 0.3, 0.3, 1.0
+    limbs.points = [_point(p) for segment in scene.limb_segments_m for p in segment]
+    out.markers.append(limbs)
+    for i, arrow in enumerate(scene.arrows):
+        m = _marker(stamp, "splitter_arrows", i, Marker.ARROW)
+        m.text = arrow.name
+        m.points = [_point(arrow.start), _point(arrow.end)]
+        m.scale.x, m.scale.y, m.scale.z = ARROW_SCALE_M
+        m.color.r, m.color.g, m.color.b, m.color.a = arrow.color
+        out.markers.append(m)
+    return out
+
+
+def masses_to_msg(scene: Scene) -> PoseArray:
+    """``/splitter/scene/masses``: the lumped masses of ``scene`` (world frame)."""
+    msg = PoseArray()
+    msg.header.stamp = cv.stamp_to_msg(scene.t_ns)
+    msg.header.frame_id = names.WORLD_FRAME
+    w, x, y, z = (float(v) for v in scene.orientation_wxyz)
+    for p in scene.mass_positions_m:
+        pose = Pose()
+        pose.position = _point(p)
+        pose.orientation.w, pose.orientation.x = w, x
+        pose.orientation.y, pose.orientation.z = y, z
+        msg.poses.append(pose)
+    return msg
+
+
+def masses_from_msg(msg: PoseArray) -> NDArray[np.float64]:
+    """(10, 3) mass positions of a ``/splitter/scene/masses`` message [m]."""
+    if msg.header.frame_id != names.WORLD_FRAME:
+        raise MessageValidationError(
+            f"header.frame_id: expected '{names.WORLD_FRAME}', got {msg.header.frame_id!r}"
+        )
+    if len(msg.poses) != N_MASSES:
+        raise MessageValidationError(f"poses: expected {N_MASSES}, got {len(msg.poses)}")
+    positions = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])
+    if not np.all(np.isfinite(positions)):
+        raise MessageValidationError("poses: non-finite position")
+    return positions
+
+
+def state_messages(state: SimState) -> list[tuple[str, object]]:
+    """(topic, message) of every state stream of one step, stamped ``state.t_ns``."""
+    t, q, w = state.t_ns, state.orientation_wxyz, state.angular_velocity_rad_s
+    return [
+        (names.CLOCK, cv.clock_to_msg(t)),
+        (names.JOINT_STATES, cv.joint_state_to_msg(t, state.joint_position, state.joint_velocity)),
+        (names.INERTIA, cv.vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME)),
+        (names.ODOM, cv.odom_to_msg(t, state.position_m, q, state.velocity_m_s, w)),
+        *(
+            (topic, cv.wrench_to_msg(t, force, torque, names.WORLD_FRAME))
+            for topic, force, torque in zip(
+                names.CONTACT_WRENCHES, state.contact_force_n, state.contact_torque_n_m, strict=True
+            )
+        ),
+        (names.IMU, cv.imu_to_msg(t, q, w, state.linear_acceleration_m_s2)),
+    ]
