@@ -90,7 +90,7 @@ def test_scripted_sequence_launch_flight_jump_flight_landing_landed() -> None:
     air) and at 1.4 s (100 ms without stance on the ground) are shorter: nothing
     changes.
     """
-    config = GaitConfig(jumps=(jump(0.0, "b"), jump(2.0, "auto")), landed_dwell_ns=300 * MS)
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(2.0, "auto")), landed_dwell_s=0.3)
     machine = GaitPhaseMachine(config)
     log: list[GaitOutput] = []
     for k in range(450):
@@ -324,7 +324,7 @@ def test_landed_needs_both_hemis_at_rest_for_the_dwell_and_is_final() -> None:
     config = GaitConfig(
         landed_speed_m_s=0.05,
         landed_angular_speed_rad_s=0.05,
-        landed_dwell_ns=200 * MS,
+        landed_dwell_s=0.2,
     )
     machine = GaitPhaseMachine(config)
     first = tick(machine, 0, velocity=(0.0, 0.0, -0.5))
@@ -373,7 +373,7 @@ def test_vertical_hopper_closed_loop_jumps_twice_and_comes_to_rest() -> None:
     thrust = (0.0, 0.0, 60.0)  # [N]
     config = GaitConfig(
         jumps=(jump(0.5, "auto", 0.6, thrust), jump(4.0, "auto", 0.6, thrust)),
-        landed_dwell_ns=500 * MS,
+        landed_dwell_s=0.5,
     )
     machine = GaitPhaseMachine(config)
     force_z = 0.0  # [N] the thrust commanded on the last tick
@@ -705,7 +705,7 @@ def test_bad_inputs_raise_and_leave_the_machine_unchanged() -> None:
 
 
 def test_same_inputs_give_identical_outputs() -> None:
-    config = GaitConfig(jumps=(jump(0.0, "b"), jump(1.0, "auto")), landed_dwell_ns=200 * MS)
+    config = GaitConfig(jumps=(jump(0.0, "b"), jump(1.0, "auto")), landed_dwell_s=0.2)
     rng = np.random.default_rng(7)
 
     def normal_at(t_ms: int) -> np.ndarray:
@@ -752,9 +752,9 @@ def test_same_inputs_give_identical_outputs() -> None:
     ("kwargs", "field"),
     [
         ({"stance_force_threshold_n": 0.0}, "stance_force_threshold_n"),
-        ({"touchdown_debounce_ns": -1}, "touchdown_debounce_ns"),
-        ({"liftoff_debounce_ns": -1}, "liftoff_debounce_ns"),
-        ({"landed_dwell_ns": -1}, "landed_dwell_ns"),
+        ({"touchdown_debounce_s": -1.0}, "touchdown_debounce_s"),
+        ({"liftoff_debounce_s": -1.0}, "liftoff_debounce_s"),
+        ({"landed_dwell_s": -1.0}, "landed_dwell_s"),
         ({"w_ref_rad_s": (0.0, math.nan, 0.0)}, "w_ref_rad_s"),
         ({"attitude_reference": "spin"}, "attitude_reference"),
         ({"jumps": (jump(1.0, "b"), jump(1.1, "a"))}, "jump 1"),

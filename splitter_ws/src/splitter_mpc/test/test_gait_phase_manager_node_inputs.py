@@ -25,17 +25,17 @@ from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
+from splitter_model.actuators import TETHER_INDEX
 from splitter_mpc.core.gait import GaitPhase
-from splitter_mpc.core.tick_inputs import MAX_PENDING_TICKS
-from splitter_mpc.gait_phase_manager_node import (
+from splitter_mpc.core.gait_tick import (
     MAX_BODY_RATE_RAD_S,
     MAX_CONTACT_FORCE_N,
     MAX_POSITION_M,
     MAX_SPEED_M_S,
     MAX_TETHER_LENGTH_M,
-    TETHER_INDEX,
-    GaitPhaseManagerNode,
 )
+from splitter_mpc.core.tick_inputs import MAX_PENDING_TICKS
+from splitter_mpc.gait_phase_manager_node import GaitPhaseManagerNode
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS
@@ -195,16 +195,11 @@ def vector3_msg(stamp: Time, frame: str, vector) -> Vector3Stamped:
 
 def send_good_tick(node: GaitPhaseManagerNode, t_ns: int) -> None:
     """A complete, valid set of the tick's inputs, as the simulator publishes it."""
-    stamp = conv.stamp_to_msg(t_ns)
-    node._on_odom(
-        conv.odom_to_msg(t_ns, (0.0, 0.0, 0.45), Q_BODY_WXYZ, (0.0, 0.0, 0.0), (0.5, -0.5, 0.5))
+    node._on_input(
+        names.ODOM,
+        conv.odom_to_msg(t_ns, (0.0, 0.0, 0.45), Q_BODY_WXYZ, (0.0, 0.0, 0.0), (0.5, -0.5, 0.5)),
     )
-    for topic in names.CONTACT_WRENCHES:
-        node._on_contact(topic, wrench_msg(stamp, names.WORLD_FRAME, (0, 0, 20.0), (0, 0, 0)))
-    joints = np.zeros(names.N_JOINTS)
-    joints[TETHER_INDEX] = 2.8
-    node._on_joint_states(conv.joint_state_to_msg(t_ns, joints))
-    node._on_inertia(conv.vector3_to_msg(t_ns, INERTIA_KG_M2, names.BASE_FRAME))
+    send_good_tick_without_odom(node, t_ns)
 
 
 class Stamps:
@@ -261,7 +256,7 @@ def rejections(node: GaitPhaseManagerNode) -> int:
 
 
 def _pending(node: GaitPhaseManagerNode) -> dict:
-    return {t: dict(inputs) for t, inputs in node.ticks.pending.items()}
+    return {t: dict(inputs) for t, inputs in node.tick.ticks.pending.items()}
 
 
 def _same_pending(a: dict, b: dict) -> bool:
@@ -271,19 +266,19 @@ def _same_pending(a: dict, b: dict) -> bool:
 
 
 def _assert_last_good_plausible(node: GaitPhaseManagerNode) -> None:
-    good = node.ticks.last_good
+    good = node.tick.ticks.last_good
     if names.ODOM in good:
         odom = good[names.ODOM]
         assert np.all(np.abs(odom.position_m) <= MAX_POSITION_M)
-        assert np.all(np.abs(odom.velocity_world_m_s) <= MAX_SPEED_M_S)
+        assert np.all(np.abs(odom.velocity_m_s) <= MAX_SPEED_M_S)
         assert np.all(np.abs(odom.angular_velocity_rad_s) <= MAX_BODY_RATE_RAD_S)
     for topic in names.CONTACT_WRENCHES:
         if topic in good:
-            assert np.all(np.abs(good[topic].force_n) <= MAX_CONTACT_FORCE_N)
+            assert np.all(np.abs(good[topic]) <= MAX_CONTACT_FORCE_N)
     if names.JOINT_STATES in good:
-        assert 0.0 < good[names.JOINT_STATES].position[TETHER_INDEX] <= MAX_TETHER_LENGTH_M
+        assert 0.0 < good[names.JOINT_STATES] <= MAX_TETHER_LENGTH_M
     if names.INERTIA in good:
-        assert np.all(good[names.INERTIA].vector > 0.0)
+        assert np.all(good[names.INERTIA] > 0.0)
 
 
 def _assert_published_sane(published: dict[str, list]) -> None:
@@ -307,36 +302,36 @@ def test_input_callbacks_survive_any_message(make_node, steps) -> None:
             if kind == "good tick":
                 stamps.t_ns += spec * TICK_NS
                 send_good_tick(node, stamps.t_ns)
-                for topic in node.ticks.inputs:
+                for topic in node.tick.ticks.inputs:
                     stamps.accepted(topic, stamps.t_ns)
                 stamps.t_ns += TICK_NS
                 continue
             stamp = stamps.make(spec)
             topic = content[0] if kind == "contact" else kind
             acceptable = stamps.acceptable(topic, stamp)
-            last_good, pending = node.ticks.last_good.get(topic), _pending(node)
+            last_good, pending = node.tick.ticks.last_good.get(topic), _pending(node)
             rejected_before = rejections(node)
             if kind == names.ODOM:
-                node._on_odom(odom_msg(stamp, content))
+                node._on_input(names.ODOM, odom_msg(stamp, content))
             elif kind == "contact":
-                node._on_contact(topic, wrench_msg(stamp, *content[1:]))
+                node._on_input(topic, wrench_msg(stamp, *content[1:]))
             elif kind == names.JOINT_STATES:
-                node._on_joint_states(joints_msg(stamp, *content))
+                node._on_input(names.JOINT_STATES, joints_msg(stamp, *content))
             else:
-                node._on_inertia(vector3_msg(stamp, *content))
+                node._on_input(names.INERTIA, vector3_msg(stamp, *content))
             rejected = rejections(node) > rejected_before
             event(f"{kind}: {'rejected' if rejected else 'accepted'}")
             if not acceptable:  # filed under no tick, the last good message kept
                 assert rejected
-                assert node.ticks.last_good.get(topic) is last_good
+                assert node.tick.ticks.last_good.get(topic) is last_good
                 assert _same_pending(_pending(node), pending)
                 continue
             stamps.accepted(topic, conv.stamp_from_msg(stamp))
             if rejected:
-                assert node.ticks.last_good.get(topic) is last_good
+                assert node.tick.ticks.last_good.get(topic) is last_good
             else:
-                assert node.ticks.last_good[topic] is not last_good
-            assert len(node.ticks.pending) <= MAX_PENDING_TICKS
+                assert node.tick.ticks.last_good[topic] is not last_good
+            assert len(node.tick.ticks.pending) <= MAX_PENDING_TICKS
             _assert_last_good_plausible(node)
         # good ticks still complete and are answered afterwards
         answered = len(published[names.JUMP_COMMAND])
@@ -352,9 +347,11 @@ def test_stamp_zero_after_ticks_is_rejected_and_keeps_the_last_good(make_node) -
         published = record_publications(node)
         for k in range(5):
             send_good_tick(node, k * TICK_NS)
-        good = dict(node.ticks.last_good)
-        node._on_odom(conv.odom_to_msg(0, (9.0, 9.0, 9.0), Q_BODY_WXYZ, (5, 0, 0), (3, 0, 0)))
-        assert all(node.ticks.last_good[topic] is sample for topic, sample in good.items())
+        good = dict(node.tick.ticks.last_good)
+        node._on_input(
+            names.ODOM, conv.odom_to_msg(0, (9.0, 9.0, 9.0), Q_BODY_WXYZ, (5, 0, 0), (3, 0, 0))
+        )
+        assert all(node.tick.ticks.last_good[topic] is sample for topic, sample in good.items())
         assert rejection_counts(node) == {names.ODOM: 1}
         send_good_tick(node, 5 * TICK_NS)
         assert len(published[names.JUMP_COMMAND]) == 6
@@ -368,12 +365,12 @@ def test_a_far_ahead_tick_does_not_lock_the_node_out(make_node) -> None:
         published = record_publications(node)
         send_good_tick(node, 0)
         send_good_tick(node, 1000 * NS_PER_S)
-        assert node.ticks.pending == {}
+        assert node.tick.ticks.pending == {}
         for k in range(1, 4):
             send_good_tick(node, k * TICK_NS)
         stamps = [conv.stamp_from_msg(m.header.stamp) for m in published[names.JUMP_COMMAND]]
         assert stamps == [0, TICK_NS, 2 * TICK_NS, 3 * TICK_NS]
-        assert rejection_counts(node) == dict.fromkeys(node.ticks.inputs, 1)
+        assert rejection_counts(node) == dict.fromkeys(node.tick.ticks.inputs, 1)
 
 
 @pytest.mark.parametrize(
@@ -390,11 +387,11 @@ def test_implausible_odom_is_rejected_and_its_tick_answered(make_node, label, mu
     with make_node() as node:
         published = record_publications(node)
         send_good_tick(node, 0)
-        good = node.ticks.last_good[names.ODOM]
+        good = node.tick.ticks.last_good[names.ODOM]
         bad = conv.odom_to_msg(TICK_NS, (0, 0, 0.45), Q_BODY_WXYZ, (0, 0, 0), (0.5, -0.5, 0.5))
         mutate(bad)
-        node._on_odom(bad)
-        assert node.ticks.last_good[names.ODOM] is good, label
+        node._on_input(names.ODOM, bad)
+        assert node.tick.ticks.last_good[names.ODOM] is good, label
         send_good_tick_without_odom(node, TICK_NS)
         assert len(published[names.JUMP_COMMAND]) == 2  # answered from the last good odom
         assert rejection_counts(node) == {names.ODOM: 1}
@@ -404,8 +401,8 @@ def test_implausible_odom_is_rejected_and_its_tick_answered(make_node, label, mu
 def send_good_tick_without_odom(node: GaitPhaseManagerNode, t_ns: int) -> None:
     stamp = conv.stamp_to_msg(t_ns)
     for topic in names.CONTACT_WRENCHES:
-        node._on_contact(topic, wrench_msg(stamp, names.WORLD_FRAME, (0, 0, 20.0), (0, 0, 0)))
+        node._on_input(topic, wrench_msg(stamp, names.WORLD_FRAME, (0, 0, 20.0), (0, 0, 0)))
     joints = np.zeros(names.N_JOINTS)
     joints[TETHER_INDEX] = 2.8
-    node._on_joint_states(conv.joint_state_to_msg(t_ns, joints))
-    node._on_inertia(conv.vector3_to_msg(t_ns, INERTIA_KG_M2, names.BASE_FRAME))
+    node._on_input(names.JOINT_STATES, conv.joint_state_to_msg(t_ns, joints))
+    node._on_input(names.INERTIA, conv.vector3_to_msg(t_ns, INERTIA_KG_M2, names.BASE_FRAME))

@@ -104,9 +104,9 @@ def configs(draw: st.DrawFn) -> GaitConfig:
     return GaitConfig(
         jumps=draw(jump_plans()),
         stance_force_threshold_n=THRESHOLD_N,
-        touchdown_debounce_ns=draw(st.sampled_from((0, 10, 50, 80))) * MS,
-        liftoff_debounce_ns=draw(st.sampled_from((0, 20, 150))) * MS,
-        landed_dwell_ns=draw(st.sampled_from((0, 30, 200))) * MS,
+        touchdown_debounce_s=draw(st.sampled_from((0, 10, 50, 80))) / 1000,
+        liftoff_debounce_s=draw(st.sampled_from((0, 20, 150))) / 1000,
+        landed_dwell_s=draw(st.sampled_from((0, 30, 200))) / 1000,
         attitude_reference=draw(st.sampled_from(ATTITUDE_REFERENCE_MODES)),
     )
 

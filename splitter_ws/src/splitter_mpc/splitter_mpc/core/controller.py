@@ -37,6 +37,7 @@ from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attit
 from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
+from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
 # Inactive phases: on the ground (LAUNCH, JUMP) the limbs are legs and stand in the
@@ -49,11 +50,17 @@ INACTIVE_PHASES = (GaitPhase.LAUNCH.value, GaitPhase.JUMP.value, GaitPhase.LANDE
 class ControllerConfig:
     """Scheduler settings (paper Table I: re-plan every 0.1 s, setpoints every 0.01 s)."""
 
-    enabled: bool = True
+    enabled: bool = parameter_field(
+        True, "run the MPC; false holds the nominal inertia (open loop)", live=True
+    )
     weights: MpcWeights = field(default_factory=MpcWeights)
     mpc: MpcSettings = field(default_factory=MpcSettings)
-    replan_period_s: float = 0.1  # [s]
-    control_period_s: float = 0.01  # [s]
+    replan_period_s: float = parameter_field(  # [s]
+        0.1, "re-plan period [s]", min_value=0.001, max_value=10.0
+    )
+    control_period_s: float = parameter_field(  # [s]
+        0.01, "setpoint period [s]", min_value=0.001, max_value=1.0
+    )
     nominal_inertia_kg_m2: tuple[float, float, float] | None = None  # held when inactive
     # Recovery (supervisory): while the body rate across the reference axis is above
     # ``recovery_enter_rate_rad_s``, the MPC is asked for a spin of at least
@@ -61,7 +68,14 @@ class ControllerConfig:
     # ``recovery_exit_rate_rad_s``; then for the reference again. A tumble is turned
     # into a spin about the axis about as fast as that spin turns (README, "Random
     # tumbles"): a faster spin recovers faster, and the tether is reeled in for it.
-    recovery_spin_rad_s: float = 0.0  # [rad/s]
+    recovery_spin_rad_s: float = parameter_field(  # [rad/s]
+        0.0,
+        "supervisory recovery: while the body turns across the reference axis, ask the MPC "
+        "for at least this spin about it [rad/s] (0: off)",
+        min_value=0.0,
+        max_value=100.0,
+        live=True,
+    )
     recovery_enter_rate_rad_s: float = 0.05  # [rad/s]
     recovery_exit_rate_rad_s: float = 0.005  # [rad/s]
     # [-] recovery only for a tumble with too little momentum to exceed this multiple
@@ -69,8 +83,16 @@ class ControllerConfig:
     # ``|H| / I_e,max < ratio * |w_ref|``. At 1 the reference spin is reachable (a slow
     # tumble, whose turn is slow: its rates scale with |H|); a tumble with more
     # momentum (the paper's Table I: |H| / I_e,max = 1.10 rad/s) ends faster than the
-    # reference anyway and is left to the MPC. inf: any tumble.
-    recovery_momentum_ratio_max: float = math.inf
+    # reference anyway and is left to the MPC. 1e9 (or inf): any tumble.
+    recovery_momentum_ratio_max: float = parameter_field(
+        1.0e9,
+        "recovery only for a tumble whose slowest spin about the reference axis, |H| / "
+        "I_max, is under this multiple of |w_ref| [-] (1: the reference spin is reachable; "
+        "1e9: any tumble)",
+        min_value=1.0e-3,
+        max_value=1.0e9,
+        live=True,
+    )
 
     def __post_init__(self) -> None:
         for name in ("replan_period_s", "control_period_s"):

@@ -20,8 +20,8 @@ is an error. Each change is reported once, on its tick, with its reason
 
 * Contact events. A hemi is in stance when its ground normal force (legs, jump
   thrust and lumped masses together) is above ``stance_force_threshold_n``.
-  Touchdown: some hemi in stance without a break for ``touchdown_debounce_ns``.
-  Lift-off: no hemi in stance for longer than ``liftoff_debounce_ns``. A phase
+  Touchdown: some hemi in stance without a break for ``touchdown_debounce_s``.
+  Lift-off: no hemi in stance for longer than ``liftoff_debounce_s``. A phase
   therefore never changes on a contact flicker shorter than the debounce. On the
   first tick the measured stance is taken as it is.
 * First phase: on the ground with a jump planned LAUNCH, on the ground without
@@ -43,7 +43,7 @@ is an error. Each change is reported once, on its tick, with its reason
   touchdown, then LANDING.
 * LANDED: both hemis in stance, the robot on the ground, speed below
   ``landed_speed_m_s`` and ``|w|`` below ``landed_angular_speed_rad_s`` without a
-  break for ``landed_dwell_ns`` (DESIGN.md: 1 s). It is final.
+  break for ``landed_dwell_s`` (DESIGN.md: 1 s). It is final.
 
 Attitude reference (``AttitudeReference``): emitted on the first tick and when
 Landing starts, made by :func:`attitude_reference_at_stamp` from the state
@@ -72,6 +72,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_msgs_py import names
+from splitter_msgs_py.core.parameter_fields import parameter_field, parameter_fields
 
 _LOG = logging.getLogger(__name__)
 
@@ -433,18 +434,64 @@ def jump_plan_parameters(jumps: Iterable[JumpLike]) -> dict[str, list[float] | l
 
 @dataclass(frozen=True)
 class GaitConfig:
-    """Thresholds, plan and references of the gait phase machine (validated)."""
+    """Thresholds, plan and references of the gait phase machine (validated).
+
+    The fields made with ``parameter_field`` are the ``gait_phase_manager`` node's
+    parameters of the same names (declared from here: default, range, live or not).
+    """
 
     jumps: tuple[PlannedJump, ...] = ()
-    stance_force_threshold_n: float = 2.0  # [N] contact normal force meaning stance
-    touchdown_debounce_ns: int = 50_000_000  # [ns] stance at least this long means touchdown
-    liftoff_debounce_ns: int = 150_000_000  # [ns] no stance for longer means lift-off
-    landed_speed_m_s: float = 0.05  # [m/s] centre-of-mass speed at rest
-    landed_angular_speed_rad_s: float = 0.05  # [rad/s] |w| at rest
-    landed_dwell_ns: int = 1_000_000_000  # [ns] at rest on both hemis this long means LANDED
-    w_ref_rad_s: tuple[float, float, float] = (0.0, 1.0, 0.0)  # [rad/s] flight, body frame
-    landing_w_ref_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
-    attitude_reference: str = "integrate_w_ref"
+    stance_force_threshold_n: float = parameter_field(
+        2.0,
+        "contact normal force above which a hemi is in stance [N]",
+        min_value=1e-3,
+        max_value=1e4,
+        live=True,
+    )
+    touchdown_debounce_s: float = parameter_field(
+        0.05,
+        "stance without a break for at least this long means touchdown [s]",
+        min_value=0.0,
+        max_value=1.0,
+        live=True,
+    )
+    liftoff_debounce_s: float = parameter_field(
+        0.15,
+        "no stance for longer than this means lift-off [s]",
+        min_value=0.0,
+        max_value=1.0,
+        live=True,
+    )
+    landed_speed_m_s: float = parameter_field(
+        0.05,
+        "centre-of-mass speed below which the robot is at rest [m/s]",
+        min_value=1e-4,
+        max_value=10.0,
+        live=True,
+    )
+    landed_angular_speed_rad_s: float = parameter_field(
+        0.05,
+        "angular speed below which the robot is at rest [rad/s]",
+        min_value=1e-4,
+        max_value=10.0,
+        live=True,
+    )
+    landed_dwell_s: float = parameter_field(
+        1.0, "time at rest in stance before LANDED [s]", min_value=0.0, max_value=60.0, live=True
+    )
+    w_ref_rad_s: tuple[float, float, float] = parameter_field(
+        (0.0, 1.0, 0.0), "flight angular velocity reference, base frame [rad/s]", length=3
+    )
+    landing_w_ref_rad_s: tuple[float, float, float] = parameter_field(
+        (0.0, 0.0, 0.0), "angular velocity reference during landing, base frame [rad/s]", length=3
+    )
+    attitude_reference: str = parameter_field(
+        "integrate_w_ref",
+        "attitude reference: hold the first measured attitude (initial), propagate it with "
+        "w_ref (integrate_w_ref), or propagate it with w_ref after turning the body axis of "
+        "w_ref onto the measured angular momentum (momentum_aligned)",
+        choices=ATTITUDE_REFERENCE_MODES,
+    )
 
     def __post_init__(self) -> None:
         validate_jump_plan(self.jumps)
@@ -456,14 +503,10 @@ class GaitConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: must be finite and > 0, got {value}")
-        if self.liftoff_debounce_ns < 0:
-            raise ValueError(f"liftoff_debounce_ns: must be >= 0, got {self.liftoff_debounce_ns}")
-        if self.touchdown_debounce_ns < 0:
-            raise ValueError(
-                f"touchdown_debounce_ns: must be >= 0, got {self.touchdown_debounce_ns}"
-            )
-        if self.landed_dwell_ns < 0:
-            raise ValueError(f"landed_dwell_ns: must be >= 0, got {self.landed_dwell_ns}")
+        for name in ("touchdown_debounce_s", "liftoff_debounce_s", "landed_dwell_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value}")
         _vector3(self.w_ref_rad_s, "w_ref_rad_s")
         _vector3(self.landing_w_ref_rad_s, "landing_w_ref_rad_s")
         if self.attitude_reference not in ATTITUDE_REFERENCE_MODES:
@@ -471,6 +514,21 @@ class GaitConfig:
                 f"attitude_reference: must be one of {ATTITUDE_REFERENCE_MODES}, "
                 f"got {self.attitude_reference!r}"
             )
+
+    @property
+    def touchdown_debounce_ns(self) -> int:
+        """[ns] stance at least this long means touchdown."""
+        return seconds_to_ns(self.touchdown_debounce_s)
+
+    @property
+    def liftoff_debounce_ns(self) -> int:
+        """[ns] no stance for longer than this means lift-off."""
+        return seconds_to_ns(self.liftoff_debounce_s)
+
+    @property
+    def landed_dwell_ns(self) -> int:
+        """[ns] at rest on both hemis this long means LANDED."""
+        return seconds_to_ns(self.landed_dwell_s)
 
     @property
     def needs_principal_inertia(self) -> bool:
@@ -488,43 +546,21 @@ def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
     both build their machine here, so they agree. ``ValueError`` names the
     parameter.
     """
-    defaults = GaitConfig()
     jumps = jump_plan_from_arrays(
         list(params.get("jump_times_s") or []),
         list(params.get("jump_forces_n") or []),
         list(params.get("jump_durations_s") or []),
         [str(h) for h in params.get("jump_hemis") or []],
     )
-
-    def seconds(name: str, default_ns: int) -> int:
-        value = float(params.get(name, default_ns / NS_PER_S))
-        if not (math.isfinite(value) and value >= 0.0):
-            raise ValueError(f"{name}: must be finite and >= 0, got {value}")
-        return seconds_to_ns(value)
-
-    def number(name: str, default: float) -> float:
-        return float(params.get(name, default))
-
-    def triple(name: str, default: tuple[float, float, float]) -> tuple[float, float, float]:
-        v = _vector3(params.get(name, default), name)
-        return (float(v[0]), float(v[1]), float(v[2]))
-
-    return GaitConfig(
-        jumps=jumps,
-        stance_force_threshold_n=number(
-            "stance_force_threshold_n", defaults.stance_force_threshold_n
-        ),
-        touchdown_debounce_ns=seconds("touchdown_debounce_s", defaults.touchdown_debounce_ns),
-        liftoff_debounce_ns=seconds("liftoff_debounce_s", defaults.liftoff_debounce_ns),
-        landed_speed_m_s=number("landed_speed_m_s", defaults.landed_speed_m_s),
-        landed_angular_speed_rad_s=number(
-            "landed_angular_speed_rad_s", defaults.landed_angular_speed_rad_s
-        ),
-        landed_dwell_ns=seconds("landed_dwell_s", defaults.landed_dwell_ns),
-        w_ref_rad_s=triple("w_ref_rad_s", defaults.w_ref_rad_s),
-        landing_w_ref_rad_s=triple("landing_w_ref_rad_s", defaults.landing_w_ref_rad_s),
-        attitude_reference=str(params.get("attitude_reference", defaults.attitude_reference)),
-    )
+    values: dict[str, Any] = {}
+    for name, default, _info in parameter_fields(GaitConfig):
+        value = params.get(name, default)
+        if isinstance(default, tuple):
+            v = _vector3(value, name)
+            values[name] = (float(v[0]), float(v[1]), float(v[2]))
+        else:
+            values[name] = str(value) if isinstance(default, str) else float(value)
+    return GaitConfig(jumps=jumps, **values)
 
 
 @dataclass(frozen=True)

@@ -122,6 +122,7 @@ from splitter_mpc.core.solvers import (
     SolverResult,
     make_backend,
 )
+from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -139,17 +140,31 @@ class MpcSettings:
     (:func:`settings_for_weights` decides; without q a solve is ~30 % faster).
     """
 
-    horizon: int = 50
-    dt_s: float = 0.01  # [s] prediction step
-    integrator: str = "euler"
-    solver: str = "fatrop"
+    horizon: int = parameter_field(50, "prediction horizon N [steps]", min_value=2, max_value=1000)
+    dt_s: float = parameter_field(  # [s] prediction step
+        0.01, "prediction step [s] (whole milliseconds)", min_value=0.001, max_value=1.0
+    )
+    integrator: str = parameter_field(
+        "euler", "prediction model integrator (euler: the paper's)", choices=INTEGRATORS
+    )
+    solver: str = parameter_field("fatrop", "optimisation back-end", choices=SOLVERS)
     options: SolverOptions = field(default_factory=SolverOptions)
-    tension_min_n: float = 1.0  # [N] taut-tether margin (soft)
-    radius_rate_scale: float = 1.0  # share of the actuator radius speeds the plan may use
+    tension_min_n: float = parameter_field(  # [N] taut-tether margin (soft)
+        1.0, "taut-tether margin [N]", min_value=0.0, max_value=1e4
+    )
+    radius_rate_scale: float = parameter_field(  # share of the actuator radius speeds
+        1.0, "share of the actuator radius speeds planned", min_value=1e-3, max_value=1.0
+    )
     attitude_states: bool = True
-    # [s] the prediction step the weights are given for (None: per stage); see
-    # MpcWeights.per_stage
-    weights_step_s: float | None = None
+    # [s] the prediction step the weights are given for (None or 0: per stage, read as
+    # None); see MpcWeights.per_stage
+    weights_step_s: float | None = parameter_field(
+        0.0,
+        "prediction step the weights are given for [s] (0: per stage); the stage weights "
+        "then keep one continuous-time cost",
+        min_value=0.0,
+        max_value=1.0,
+    )
 
     def __post_init__(self) -> None:
         if not (isinstance(self.horizon, int) and 2 <= self.horizon <= 1000):
@@ -162,9 +177,11 @@ class MpcSettings:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        if self.weights_step_s == 0.0:
+            object.__setattr__(self, "weights_step_s", None)
         step = self.weights_step_s
         if step is not None and not (math.isfinite(step) and step > 0.0):
-            raise ValueError(f"weights_step_s must be None or finite and > 0, got {step!r}")
+            raise ValueError(f"weights_step_s must be None, 0 or finite and > 0, got {step!r}")
 
     @property
     def dt_ns(self) -> int:

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 
 from splitter_mpc.core.codegen import CompilationError, compiled_functions, compiled_library
 from splitter_mpc.core.ocp import MorphingOcp
+from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
 SOLVERS = ("fatrop", "ipopt", "sqp", "rti")
@@ -59,22 +60,46 @@ LOCKSTEP_MAX_TIME_S = 2.0
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """Caps and tolerances shared by the back-ends."""
+    """Caps and tolerances shared by the back-ends.
 
-    max_iter: int = 30
-    max_time_s: float = 0.08  # [s] wall-time deadline per solve (real time: a late plan is dropped)
+    The fields made with ``parameter_field`` are ``inertial_morphing_mpc`` node
+    parameters (:data:`splitter_mpc.core.mpc_tick.PARAMETER_NAMES` gives the node's
+    name where it differs).
+    """
+
+    max_iter: int = parameter_field(30, "iteration cap per solve", min_value=1, max_value=10000)
+    max_time_s: float = parameter_field(  # [s] real time: a late plan is dropped
+        0.08,
+        "wall-time deadline per solve [s]; a missed one executes the previous plan",
+        min_value=1e-3,
+        max_value=60.0,
+    )
     # Run the back-end in a worker process that is killed at max_time_s
     # (:mod:`.solver_worker`): the only bound that holds when a native solve freezes.
-    isolated: bool = True
+    isolated: bool = parameter_field(
+        True,
+        "solve in a worker process killed at the deadline (the only bound that holds when "
+        "a native solve freezes); false solves in the node's process",
+    )
     # lockstep: a restarted worker's build is waited for outside the deadline
     # (deterministic); real time: it counts against it
-    wait_for_worker_start: bool = True
-    tol: float = 1e-6  # optimality of the scaled problem (interior point) / step size (SQP)
+    wait_for_worker_start: bool = parameter_field(
+        True,
+        "after a missed deadline, wait for the restarted worker outside the deadline "
+        "(lockstep, deterministic); false counts its start against the deadline (real time)",
+    )
+    # optimality of the scaled problem (interior point) / step size (SQP)
+    tol: float = parameter_field(
+        1e-6, "solver tolerance (scaled problem)", min_value=1e-14, max_value=1e-2
+    )
     usable_infeasibility: float = 1e-4  # largest constraint violation of an executable plan
     # sqp/rti iterates carry the linearisation error of the dynamics (RTI's premise):
     rti_usable_infeasibility: float = 1e-2
-    compile: bool = True  # compile the derivative code with gcc (cached on disk)
-    cache_dir: Path | None = None
+    compile: bool = parameter_field(True, "compile the derivative code with gcc (cached on disk)")
+    # a folder; "" or None: $SPLITTER_CACHE_DIR or ~/.cache/splitter (read as None)
+    cache_dir: Path | str | None = parameter_field(  # noqa: RUF009 (a str default)
+        "", "compiled-code cache ('' = $SPLITTER_CACHE_DIR or ~/.cache/splitter)"
+    )
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
@@ -83,6 +108,9 @@ class SolverOptions:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        if isinstance(self.cache_dir, str):
+            folder = Path(self.cache_dir).expanduser() if self.cache_dir else None
+            object.__setattr__(self, "cache_dir", folder)
 
 
 @dataclass(frozen=True)
