@@ -1,7 +1,7 @@
 """The Foxglove bridge (issue 19): a WebSocket client sees the graph's topics and their messages.
 
 In one process: a publisher node sends odometry, IMU, inertia, contact wrenches,
-the latched gait phase and the simulator's marker array; the bridge node serves
+the latched gait phase, the scene's masses and the marker array; the bridge node serves
 them on 127.0.0.1 (a free port); a ``websockets`` client speaking the Foxglove
 WebSocket protocol sees the channels advertised (ROS 2 encoding: ``cdr`` with the
 ``ros2msg`` schema), subscribes and receives the messages that were published (CDR, unchanged),
@@ -20,6 +20,7 @@ import struct
 import threading
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 import websockets
 from nav_msgs.msg import Odometry
@@ -40,6 +41,8 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.qos import qos_for
+from splitter_sim.core.scene import scene_from_pose
+from splitter_sim.messages import masses_to_msg, scene_markers
 
 SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
 PUBLISH_PERIOD_S = 0.02  # [s] wall
@@ -48,7 +51,7 @@ MESSAGE_DATA_OP = 0x01  # binary opcode of a message in the Foxglove WebSocket p
 
 
 class FakeSimulator(Node):
-    """Publishes a moving state and the simulator's markers on the graph's topics."""
+    """Publishes a moving state, the scene's masses and the markers on the graph's topics."""
 
     def __init__(self, context) -> None:
         super().__init__("fake_simulator", context=context)
@@ -59,6 +62,7 @@ class FakeSimulator(Node):
                 names.IMU,
                 names.INERTIA,
                 names.MARKERS,
+                names.SCENE_MASSES,
                 names.GAIT_PHASE,
                 *names.CONTACT_WRENCHES,
             )
@@ -79,19 +83,19 @@ class FakeSimulator(Node):
         self.pubs[names.INERTIA].publish(vector3_to_msg(t, [1.0, 140.0, 140.0]))
         for i, topic in enumerate(names.CONTACT_WRENCHES):
             self.pubs[topic].publish(wrench_to_msg(t, [0.0, 0.0, 10.0 * i]))
-        markers = MarkerArray()
-        for i in range(10):
-            m = Marker()
-            m.header.stamp = odom.header.stamp
-            m.header.frame_id = names.WORLD_FRAME
-            m.ns = "splitter_masses"
-            m.id = i
-            m.type = Marker.SPHERE
-            m.pose.position.x = x + (2.8 if i < 5 else -2.8)
-            m.pose.position.z = 1.0 - 0.1 * (i % 5)
-            m.pose.orientation.w = 1.0
-            markers.markers.append(m)
-        self.pubs[names.MARKERS].publish(markers)
+        masses = np.zeros((10, 3))
+        masses[:, 0] = [x + (2.8 if i < 5 else -2.8) for i in range(10)]
+        masses[:, 2] = [1.0 - 0.1 * (i % 5) for i in range(10)]
+        scene = scene_from_pose(
+            t,
+            [x, 0.0, 1.0],
+            [1.0, 0.0, 0.0, 0.0],
+            mass_positions_world=masses,
+            principal_inertia_kg_m2=[1.0, 140.0, 140.0],
+            angular_velocity_rad_s=[0.0, 1.0, 0.0],
+        )
+        self.pubs[names.SCENE_MASSES].publish(masses_to_msg(scene))
+        self.pubs[names.MARKERS].publish(scene_markers(scene))
 
 
 @pytest.fixture
@@ -183,7 +187,7 @@ def test_client_sees_channels_and_receives_messages(bridge_graph) -> None:
         sent = deserialize_message(sim.sent_odom[log_time], Odometry)
         assert deserialize_message(payload, Odometry) == sent
     markers = deserialize_message(received[names.MARKERS][0][1], MarkerArray)
-    assert sorted(m.id for m in markers.markers) == list(range(10))
+    assert sorted(m.id for m in markers.markers if m.ns == "splitter_masses") == list(range(10))
     # scene: axes, angular momentum and hemi b's contact force (hemi a's is zero: deleted)
     scene = deserialize_message(received[SCENE_TOPIC][-1][1], MarkerArray)
     added = {m.id for m in scene.markers if m.action == Marker.ADD}

@@ -4,8 +4,10 @@ Thin ROS layer over the ``foxglove-sdk`` package: one Foxglove channel per graph
 topic, in the ROS 2 message encoding (``cdr`` payloads exactly as received with
 ``raw=True`` subscriptions, the ``ros2msg`` schema text rosbag2 writes, from
 :func:`splitter_msgs_py.bag.definitions.message_definition`), so Foxglove decodes
-them as it decodes a bag. Two derived channels complete the 3D scene
-(:mod:`splitter_sim.core.scene`), made each time ``/splitter/markers`` arrives:
+them as it decodes a bag. Two derived channels complete the 3D scene, drawn from
+the typed scene (:class:`splitter_sim.core.scene.Scene`: the masses of
+``/splitter/scene/masses`` with the latest odometry, IMU rate, inertia and contact
+wrenches) each time ``/splitter/scene/masses`` arrives:
 
 * ``/splitter/scene`` (``visualization_msgs/msg/MarkerArray``, cdr): body axes,
   the world angular momentum and the contact force of each hemi as arrows;
@@ -44,7 +46,8 @@ from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
 from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_sim.core.scene import Arrow, scene_arrows
+from splitter_sim.core.scene import Arrow, scene_from_pose
+from splitter_sim.messages import masses_from_msg
 
 NODE_NAME = "foxglove_bridge"
 DEFAULT_PORT = 8765
@@ -52,7 +55,6 @@ DEFAULT_HOST = "127.0.0.1"
 SCENE_TOPIC = "/splitter/scene"
 TF_TOPIC = "/splitter/tf"
 SCENE_NS = "splitter_scene"
-MASS_NS = "splitter_masses"  # the simulator's mass spheres in /splitter/markers
 # marker id of each scene arrow (a missing contact arrow is deleted by id)
 ARROW_IDS = {
     "axis_x": 0,
@@ -202,8 +204,8 @@ class FoxgloveBridgeNode(Node):
         self._fg_channels[topic].log(data, log_time=log_time)
         if topic == names.MARKERS:
             self._server.broadcast_time(log_time)
-            if self._scene:
-                self._publish_scene(data, log_time)
+        if topic == names.SCENE_MASSES and self._scene:
+            self._publish_scene(log_time)
 
     def _resend_latched(self) -> None:
         for topic in self._latched:
@@ -217,36 +219,31 @@ class FoxgloveBridgeNode(Node):
             return None
         return deserialize_message(data, TOPIC_MESSAGE_CLASSES[topic])
 
-    def _publish_scene(self, markers_data: bytes, log_time: int) -> None:
-        """Arrows and the base frame from the latest state; skipped until odometry arrived."""
+    def _publish_scene(self, log_time: int) -> None:
+        """Arrows and the base frame of the latest scene; skipped until odometry arrived."""
         odom, imu, inertia = (self._decoded(t) for t in (names.ODOM, names.IMU, names.INERTIA))
         if odom is None or imu is None or inertia is None:
             return
         pose = odom.pose.pose
         position = np.array([pose.position.x, pose.position.y, pose.position.z])
         q = pose.orientation
-        orientation = np.array([q.w, q.x, q.y, q.z])
-        w = imu.angular_velocity
-        inertia_v = inertia.vector
-        markers = deserialize_message(markers_data, MarkerArray)
-        masses = sorted((m.id, m.pose.position) for m in markers.markers if m.ns == MASS_NS)
+        w, inertia_v = imu.angular_velocity, inertia.vector
         wrenches = [self._decoded(t) for t in names.CONTACT_WRENCHES]
-        mass_positions = contact = None
-        if len(masses) == 10 and all(wr is not None for wr in wrenches):
-            mass_positions = np.array([[p.x, p.y, p.z] for _, p in masses])
-            contact = np.array(
-                [[wr.wrench.force.x, wr.wrench.force.y, wr.wrench.force.z] for wr in wrenches]
-            )
+        contact = None
+        if all(wr is not None for wr in wrenches):
+            contact = [[wr.wrench.force.x, wr.wrench.force.y, wr.wrench.force.z] for wr in wrenches]
         try:
-            arrows = scene_arrows(
+            scene = scene_from_pose(
+                header_stamp_ns(self._last[names.SCENE_MASSES]) or 0,
                 position,
-                orientation,
-                [inertia_v.x, inertia_v.y, inertia_v.z],
-                [w.x, w.y, w.z],
-                mass_positions_world=mass_positions,
+                [q.w, q.x, q.y, q.z],
+                mass_positions_world=masses_from_msg(self._decoded(names.SCENE_MASSES)),
+                principal_inertia_kg_m2=[inertia_v.x, inertia_v.y, inertia_v.z],
+                angular_velocity_rad_s=[w.x, w.y, w.z],
                 contact_forces_n=contact,
             )
-        except ValueError as exc:
+            arrows = scene.arrows
+        except ValueError as exc:  # MessageValidationError too
             self.get_logger().warning(f"scene not drawn: {exc}", throttle_duration_sec=2.0)
             return
         stamp = odom.header.stamp
