@@ -1,6 +1,6 @@
 """The layering holds in every Python file, tests included (import-linter sees only packages).
 
-splitter_msgs_py and splitter_model at the bottom; splitter_sim, splitter_mpc and
+splitter_model at the bottom, splitter_msgs_py on it; splitter_sim, splitter_mpc and
 splitter_ik beside each other, each importing only the bottom; splitter_bringup
 on top. A package's tests live with it and follow its rule; the top-level tests/
 may import anything.
@@ -14,12 +14,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "splitter_ws" / "src"
 LEVEL = {
-    "splitter_msgs_py": 0,
     "splitter_model": 0,
-    "splitter_sim": 1,
-    "splitter_mpc": 1,
-    "splitter_ik": 1,
-    "splitter_bringup": 2,
+    "splitter_msgs_py": 1,
+    "splitter_sim": 2,
+    "splitter_mpc": 2,
+    "splitter_ik": 2,
+    "splitter_bringup": 3,
 }
 
 
