@@ -84,13 +84,11 @@ class SimulatorNode(Node):
             (WrenchStamped, names.JUMP_COMMAND, self._on_jump_command),
         ):
             self.create_subscription(msg_type, topic, callback, qos_for(topic))
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        config = self.tick.sim.config
-        if self.tick.real_time:
-            period = max(config.dt_s / settings.rate_factor, 0.001)  # [s] catch-up does the rest
-            self._timer = self.create_timer(period, self._on_real_time_timer, clock=steady)
-        else:
-            self._timer = self.create_timer(LOCKSTEP_POLL_S, self._advance, clock=steady)
+        dt_s, real_time = self.tick.sim.config.dt_s, self.tick.real_time
+        period = max(dt_s / settings.rate_factor, 0.001) if real_time else LOCKSTEP_POLL_S  # [s]
+        driver = self._on_real_time_timer if real_time else self._advance
+        steady = Clock(clock_type=ClockType.STEADY_TIME)  # real time: catch-up does the rest
+        self._timer = self.create_timer(period, driver, clock=steady)
         self.tick.pacer.restart(time.monotonic(), self.tick.time_ns)
         self.get_logger().info(f"simulator ready: {self.tick.describe()}")
 
@@ -99,7 +97,6 @@ class SimulatorNode(Node):
         """Simulated time of the last step [ns]."""
         return self.tick.time_ns
 
-    # --- parameters -------------------------------------------------------------------
     def _declared_settings(self) -> tuple[SimulatorSettings, SimConfig]:
         settings = config_from_values(
             SimulatorSettings, declare_parameters(self, specs_from_config(SimulatorSettings))
@@ -121,7 +118,6 @@ class SimulatorNode(Node):
         except (ParameterException, ValueError) as exc:
             raise InvalidParameterError(f"parameter 'gravity': {exc}") from exc
 
-    # --- commands ---------------------------------------------------------------------
     def _on_joint_commands(self, msg: JointState) -> None:
         def apply(stamp: int) -> None:
             sample = cv.joint_state_from_msg(msg)
@@ -158,7 +154,6 @@ class SimulatorNode(Node):
         if self._started and self.tick.answers_now(stamp):
             self._advance()
 
-    # --- stepping ---------------------------------------------------------------------
     def _ready_to_start(self) -> bool:
         """Stepping starts once the graph is connected (or ``startup_wait_s`` ran out)."""
         s = self.tick.settings
@@ -283,7 +278,6 @@ class SimulatorNode(Node):
         self.finished.set_result(True)
         return True
 
-    # --- outputs ----------------------------------------------------------------------
     def _publish_state(self) -> None:
         t = self._published_t_ns = self.tick.time_ns
         state = self.tick.publishable_state()

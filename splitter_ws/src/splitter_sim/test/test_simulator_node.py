@@ -22,6 +22,7 @@ from splitter_msgs_py import names
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import qos_for
 from splitter_sim.core.stepping import pushing_hemi
+from splitter_sim.messages import masses_from_msg
 from splitter_sim.simulator_node import SimulatorNode
 
 DT_NS = 5_000_000
@@ -34,6 +35,7 @@ PUBLISHED = (
     names.CONTACT_WRENCH_A,
     names.CONTACT_WRENCH_B,
     names.MARKERS,
+    names.SCENE_MASSES,
     names.DIAGNOSTICS,
 )
 
@@ -132,6 +134,15 @@ def test_publishes_every_topic_stamped_on_its_grid(graph) -> None:
     ):
         assert probe.stamps(topic) == steps, topic
     assert probe.stamps(names.MARKERS) == [0, 40_000_000, 80_000_000]
+    assert probe.stamps(names.SCENE_MASSES) == [0, 40_000_000, 80_000_000]
+    # the markers are drawn from the scene the node publishes: the same masses
+    for scene_msg, marker_msg in zip(
+        probe.messages[names.SCENE_MASSES], probe.messages[names.MARKERS], strict=True
+    ):
+        spheres = [m.pose.position for m in marker_msg.markers[:10]]
+        np.testing.assert_array_equal(
+            masses_from_msg(scene_msg), [[p.x, p.y, p.z] for p in spheres]
+        )
     # 10 Hz plus the final status at the end of duration_s
     assert probe.stamps(names.DIAGNOSTICS) == [0, 100_000_000, 100_000_000]
     final = probe.diagnostics()[-1]

@@ -11,9 +11,7 @@ node publishes stays finite.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterator
-from contextlib import contextmanager
+import functools
 
 import numpy as np
 import pytest
@@ -21,15 +19,21 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
-from splitter_msgs_py.inspection import non_finite_fields, record_publications
+from splitter_msgs_py.inspection import record_publications
 from splitter_msgs_py.parameters import rejection_counts
+from splitter_msgs_py.testing import (
+    ANY_TEXT,
+    ANY_VECTOR3,
+    FLOAT_LIST,
+    assert_finite,
+    node_under_test,
+)
 from splitter_sim.core.stepping import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM
 from splitter_sim.simulator_node import SimulatorNode
 
@@ -39,23 +43,6 @@ pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
 MODEL = RobotModel()
 DT_NS = 5_000_000  # [ns] simulation step
 NS_PER_S = 1_000_000_000
-SPECIAL_FLOATS = (
-    math.nan,
-    math.inf,
-    -math.inf,
-    1e300,
-    -1e300,
-    1e-300,
-    -1e-300,
-    0.0,
-    -0.0,
-    5e-324,
-    1.7976931348623157e308,
-    -1.7976931348623157e308,
-)
-ANY_FLOAT = st.one_of(st.floats(), st.sampled_from(SPECIAL_FLOATS))
-ANY_VECTOR3 = st.tuples(ANY_FLOAT, ANY_FLOAT, ANY_FLOAT)
-ANY_TEXT = st.text(st.characters(blacklist_categories=("Cs",)), max_size=12)
 FRAME = st.one_of(st.sampled_from([names.WORLD_FRAME, names.BASE_FRAME, ""]), ANY_TEXT)
 # now / k steps behind now / zero / k ns ahead of now / raw fields
 STAMP = st.one_of(
@@ -70,7 +57,6 @@ RADII = st.tuples(
     st.floats(float(MODEL.radii_min_m[1]), float(MODEL.radii_max_m[1])),
     st.floats(float(MODEL.radii_min_m[2]), float(MODEL.radii_max_m[2])),
 )
-FLOAT_LIST = st.lists(ANY_FLOAT, max_size=27)
 # (names, positions, velocities, efforts): a valid command in any joint order, or anything
 GOOD_JOINTS = st.tuples(
     st.permutations(range(names.N_JOINTS)),
@@ -110,11 +96,6 @@ SETTINGS = settings(
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
-
-
-def assert_finite(msg: object, path: str = "msg") -> None:
-    """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    assert non_finite_fields(msg, path) == []
 
 
 def make_stamp(spec: tuple, now_ns: int) -> Time:
@@ -159,17 +140,7 @@ def rejections(node) -> int:
 @pytest.fixture
 def make_node(ros_context):
     """Builds a simulator that lives for one hypothesis example (``with make_node() as n``)."""
-
-    @contextmanager
-    def make(**parameters) -> Iterator[SimulatorNode]:
-        overrides = [Parameter(k, value=v) for k, v in parameters.items()]
-        node = SimulatorNode(context=ros_context, parameter_overrides=overrides)
-        try:
-            yield node
-        finally:
-            node.destroy_node()
-
-    return make
+    return functools.partial(node_under_test, SimulatorNode, ros_context)
 
 
 def _step(node: SimulatorNode, n: int) -> None:
