@@ -166,9 +166,9 @@ def test_check_bag_reads_joint_states_imu_phase_and_thrust(tmp_path, capsys) -> 
     from rclpy.serialization import serialize_message
     from std_msgs.msg import String
 
+    from splitter_bag import BagWriter
     from splitter_msgs_py import conversions as conv
     from splitter_msgs_py import names
-    from splitter_msgs_py.bag import BagWriter
 
     t_ns = np.arange(0, 400) * 5_000_000
     base = joint_positions_from_radii(MODEL, [2.0, 0.25, 0.25])

@@ -22,13 +22,13 @@ from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 
+from splitter_bag import read_mcap_statistics, read_messages, read_metadata
 from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.graph_run import run_graph
 from splitter_bringup.inprocess import record_graph
 from splitter_bringup.replay import replay_mpc
 from splitter_msgs_py import names
-from splitter_msgs_py.bag import read_mcap_statistics, read_messages, read_metadata
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import pytest
 
+from splitter_bag import read_metadata
 from splitter_bringup.commands.bench_graph import _metric_values, largest_relative_difference
 from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.graph_run import WallTiming, run_graph
 from splitter_msgs_py import names
-from splitter_msgs_py.bag import read_metadata
 from splitter_msgs_py.environment import ros_environment
 
 SPLITTER = Path(sys.executable).with_name("splitter")

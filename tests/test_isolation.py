@@ -26,9 +26,9 @@ import yaml
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
+from splitter_bag.core.reader import read_messages
 from splitter_bringup.core.scenario import scenario_dir
 from splitter_msgs_py import names
-from splitter_msgs_py.bag.reader import read_messages
 
 SPLITTER = Path(sys.executable).with_name("splitter")
 DURATION_S = 2.0  # [s] simulated: the shortest flight that still re-plans 20 times

@@ -128,7 +128,7 @@ STALL_TIMEOUT_S = 3.0  # [s] wall
 def test_a_stalled_node_is_named_and_the_lockstep_run_fails_with_its_bag_finalized(
     tmp_path: Path,
 ) -> None:
-    from splitter_msgs_py.bag.reader import read_messages
+    from splitter_bag.core.reader import read_messages
 
     launcher = start_launcher(
         tmp_path,

@@ -1,9 +1,9 @@
 """The layering holds in every Python file, tests included (import-linter sees only packages).
 
-splitter_model at the bottom, splitter_msgs_py on it; splitter_sim, splitter_mpc and
-splitter_ik beside each other, each importing only the bottom; splitter_bringup
-on top. A package's tests live with it and follow its rule; the top-level tests/
-may import anything.
+splitter_model at the bottom, splitter_msgs_py on it, splitter_bag on that;
+splitter_sim, splitter_mpc and splitter_ik beside each other, each importing only
+the layers below; splitter_bringup on top. A package's tests live with it and
+follow its rule; the top-level tests/ may import anything.
 """
 
 from __future__ import annotations
@@ -16,10 +16,11 @@ SRC = ROOT / "splitter_ws" / "src"
 LEVEL = {
     "splitter_model": 0,
     "splitter_msgs_py": 1,
-    "splitter_sim": 2,
-    "splitter_mpc": 2,
-    "splitter_ik": 2,
-    "splitter_bringup": 3,
+    "splitter_bag": 2,
+    "splitter_sim": 3,
+    "splitter_mpc": 3,
+    "splitter_ik": 3,
+    "splitter_bringup": 4,
 }
 
 

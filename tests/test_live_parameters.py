@@ -34,6 +34,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import serialize_message
 
+from splitter_bag import BagWriter, QosProfile
+from splitter_bag.player_node import PlayerNode
 from splitter_bringup.core.graph_config import graph_nodes
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.foxglove_bridge_node import FoxgloveBridgeNode
@@ -41,9 +43,7 @@ from splitter_bringup.graph_watchdog_node import GraphWatchdogNode
 from splitter_bringup.inprocess import create_node
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import conversions as cv
-from splitter_msgs_py.bag import BagWriter, QosProfile
 from splitter_msgs_py.parameters import parameter_diagnostics
-from splitter_msgs_py.player_node import PlayerNode
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 NAN = float("nan")

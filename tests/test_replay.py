@@ -20,14 +20,14 @@ import numpy as np
 import pytest
 import rclpy
 
+from splitter_bag import BagWriter, read_messages, read_metadata
+from splitter_bag.core.definitions import header_stamp_ns
+from splitter_bag.core.reader import read_attachments
 from splitter_bringup.core.graph_config import graph_nodes, with_parameter_attachments
 from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.inprocess import record_graph
 from splitter_bringup.replay import ReplayError, replay_mpc
 from splitter_msgs_py import names
-from splitter_msgs_py.bag import BagWriter, read_messages, read_metadata
-from splitter_msgs_py.bag.definitions import header_stamp_ns
-from splitter_msgs_py.bag.reader import read_attachments
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 REPLAY_DOMAIN_ID = TEST_DOMAIN_ID + 13  # <= MAX_DOMAIN_OFFSET

@@ -27,6 +27,7 @@ COLCON = Path(sys.executable).with_name("colcon")
 PACKAGES = (
     "splitter_msgs_py",
     "splitter_model",
+    "splitter_bag",
     "splitter_sim",
     "splitter_mpc",
     "splitter_ik",
@@ -44,7 +45,7 @@ SCRIPTS = [
     ("splitter_sim", "simulator", ["--ros-args", "-p", "mode:=real_time"], True),
     ("splitter_mpc", "gait_phase_manager", [], True),
     ("splitter_ik", "ik_tether_allocator", [], True),
-    ("splitter_msgs_py", "recorder", [], True),
+    ("splitter_bag", "recorder", [], True),
 ]
 
 
@@ -72,7 +73,7 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
         check=False,
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert "6 packages finished" in result.stdout
+    assert f"{len(PACKAGES)} packages finished" in result.stdout
     return base / "install"
 
 
@@ -84,6 +85,7 @@ def test_colcon_installs_data_files(colcon_install: Path) -> None:
     for package in (
         "splitter_msgs_py",
         "splitter_model",
+        "splitter_bag",
         "splitter_sim",
         "splitter_mpc",
         "splitter_ik",

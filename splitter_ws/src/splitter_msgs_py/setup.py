@@ -1,5 +1,3 @@
-from glob import glob
-
 from setuptools import find_packages, setup
 
 PACKAGE_NAME = "splitter_msgs_py"
@@ -13,18 +11,11 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE_NAME]),
         ("share/" + PACKAGE_NAME, ["package.xml"]),
-        ("share/" + PACKAGE_NAME + "/config", glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="SPLITTER developers",
     maintainer_email="splitter-dev@example.com",
-    description="SPLITTER interface layer: names, QoS, conversions, MCAP bags.",
+    description="SPLITTER interface layer: names, QoS, conversions, parameters.",
     license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "recorder = splitter_msgs_py.recorder_node:main",
-            "player = splitter_msgs_py.player_node:main",
-        ],
-    },
 )

@@ -24,7 +24,7 @@ from splitter_msgs_py.environment import loopback_profile_path
 
 # node name -> (package, executable) of the console scripts in setup.py
 EXECUTABLES = {
-    "recorder": ("splitter_msgs_py", "recorder"),
+    "recorder": ("splitter_bag", "recorder"),
     "inertial_morphing_mpc": ("splitter_mpc", "inertial_morphing_mpc"),
     "ik_tether_allocator": ("splitter_ik", "ik_tether_allocator"),
     "gait_phase_manager": ("splitter_mpc", "gait_phase_manager"),

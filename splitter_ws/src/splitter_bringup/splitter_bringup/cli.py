@@ -24,7 +24,7 @@ COMMANDS: Mapping[str, tuple[str, str]] = {
     "run": ("splitter_bringup.commands.run", "run a scenario to its end, write summary and plots"),
     "launch": ("splitter_bringup.commands.launch", "start every node as its own process"),
     "bench": ("splitter_bringup.commands.bench", "benchmarks that print figures (sim, mpc, bag)"),
-    "bag": ("splitter_msgs_py.bag_cli", "bag tools: info, recover, play, record"),
+    "bag": ("splitter_bag.cli", "bag tools: info, recover, play, record"),
     "plot": ("splitter_bringup.commands.plot", "plot a recorded bag as the paper's figures"),
     "animate": (
         "splitter_bringup.commands.animate",

@@ -40,8 +40,8 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
+from splitter_bag.core.definitions import header_stamp_ns, message_definition, starts_with_header
 from splitter_msgs_py import names
-from splitter_msgs_py.bag.definitions import header_stamp_ns, message_definition, starts_with_header
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
 from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters

@@ -167,7 +167,7 @@ def record_graph(
     closes its bag. Returns what the probe saw. Raises ``TimeoutError`` when the
     flight does not reach ``record_s`` within ``timeout_s`` (wall).
     """
-    from splitter_msgs_py.recorder_node import RecorderNode
+    from splitter_bag.recorder_node import RecorderNode
 
     graph = start_graph(scenario, context)
     try:

@@ -1,7 +1,7 @@
 """Replay for regression: feed a recorded bag's inputs to a fresh MPC node, compare setpoints.
 
 Parameters: the MPC's, as the bag carries them (the MCAP attachment
-``params/inertial_morphing_mpc.yaml``, :mod:`splitter_msgs_py.bag.node_parameters`),
+``params/inertial_morphing_mpc.yaml``, :mod:`splitter_bag.core.node_parameters`),
 else the run folder's ``params/inertial_morphing_mpc.yaml`` beside the bag (bags
 recorded before the attachment), else the caller's. A bag with none of them is
 refused (:class:`ReplayError`): it is never replayed with default parameters.
@@ -46,17 +46,17 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 
-from splitter_bringup.core.replay_accounting import ReplayAccount, Solve, account
-from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
-from splitter_msgs_py import names
-from splitter_msgs_py.bag import read_messages
-from splitter_msgs_py.bag.definitions import header_stamp_ns
-from splitter_msgs_py.bag.node_parameters import (
+from splitter_bag import read_messages
+from splitter_bag.core.definitions import header_stamp_ns
+from splitter_bag.core.node_parameters import (
     ParameterFileError,
     attachment_name,
     bag_node_parameters,
     read_parameter_file,
 )
+from splitter_bringup.core.replay_accounting import ReplayAccount, Solve, account
+from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
+from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     TOPIC_MESSAGE_CLASSES,
     diagnostics_from_msg,

@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 from rclpy.serialization import deserialize_message
 
+from splitter_bag.core.metadata import read_metadata
+from splitter_bag.core.reader import read_messages
 from splitter_bringup.core.bag_series import (
     DIAGNOSTIC_KEYS,
     GRAVITY_KEY,
@@ -27,8 +29,6 @@ from splitter_bringup.core.series import RunSeries
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
-from splitter_msgs_py.bag.metadata import read_metadata
-from splitter_msgs_py.bag.reader import read_messages
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
 
 

@@ -20,13 +20,13 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 
+from splitter_bag import BagWriter
 from splitter_bringup.core import bag_series
 from splitter_bringup.core.flight_frames import caption, frame_times, sample_indices
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
-from splitter_msgs_py.bag import BagWriter
 from splitter_sim.core.scene import (
     MOMENTUM_SCALE_M,
     SceneGeometry,

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 
+from splitter_bag import BagWriter, WriterOptions
 from splitter_bringup.core import bag_series
 from splitter_bringup.run_bag import read_run_series
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
-from splitter_msgs_py.bag import BagWriter, WriterOptions
 
 STEP_NS = 5_000_000  # [ns] state rate 200 Hz
 N = 200  # 1 s

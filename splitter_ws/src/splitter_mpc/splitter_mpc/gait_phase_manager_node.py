@@ -62,9 +62,7 @@ from splitter_mpc.core.gait_tick import (
 from splitter_mpc.core.tick_inputs import TickEvents
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
-    DiagnosticStatusSample,
     MessageValidationError,
-    diagnostics_to_msg,
     joint_state_from_msg,
     odom_from_msg,
     pose_to_msg,
@@ -74,12 +72,11 @@ from splitter_msgs_py.conversions import (
     wrench_to_msg,
 )
 from splitter_msgs_py.node_pattern import admitted_stamp, run_node, sim_clock_ns
+from splitter_msgs_py.node_status import publish_status
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterValue,
     declare_parameters,
-    parameter_diagnostics,
-    rejection_counts,
     specs_from_config,
     warn_throttled,
 )
@@ -249,7 +246,9 @@ class GaitPhaseManagerNode(Node):
                 self._publish_reference(output)
         self._jump_pub.publish(jump)
         if answer.diagnostics is not None:
-            self._publish_diagnostics(t_ns, *answer.diagnostics)
+            publish_status(
+                self, self._diagnostics_pub, t_ns, f"{NODE_NAME}: gait phase", answer.diagnostics
+            )
 
     def _publish_reference(self, output: GaitOutput) -> None:
         reference = output.reference
@@ -261,18 +260,6 @@ class GaitPhaseManagerNode(Node):
             return
         self._w_ref_pub.publish(twist)
         self._q_ref_pub.publish(pose)
-
-    def _publish_diagnostics(self, t_ns: int, level: int, message: str, values: dict) -> None:
-        values = {
-            **values,
-            "rejected_messages": sum(rejection_counts(self).values()),
-            **parameter_diagnostics(self),
-        }
-        status = DiagnosticStatusSample(f"{NODE_NAME}: gait phase", level, message, values)
-        try:
-            self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [status]))
-        except MessageValidationError as exc:
-            self.get_logger().error(f"diagnostics not published: {exc}")
 
 
 def main(args: list[str] | None = None) -> int:

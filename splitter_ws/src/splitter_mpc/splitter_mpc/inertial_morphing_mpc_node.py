@@ -50,9 +50,7 @@ from splitter_mpc.core.mpc_tick import (
 )
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
-    DiagnosticStatusSample,
     MessageValidationError,
-    diagnostics_to_msg,
     imu_from_msg,
     pose_from_msg,
     principal_inertia_from_msg,
@@ -60,12 +58,11 @@ from splitter_msgs_py.conversions import (
     vector3_to_msg,
 )
 from splitter_msgs_py.node_pattern import admitted_stamp, run_node, sim_clock_ns
+from splitter_msgs_py.node_status import publish_status
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterValue,
     declare_parameters,
-    parameter_diagnostics,
-    rejection_counts,
     specs_from_config,
     warn_throttled,
 )
@@ -225,19 +222,13 @@ class InertialMorphingMpcNode(Node):
         msg = vector3_to_msg(answer.t_ns, answer.setpoint_kg_m2, names.BASE_FRAME)
         self._setpoint_pub.publish(msg)
         if answer.diagnostics is not None:
-            self._publish_diagnostics(answer.t_ns, *answer.diagnostics)
-
-    def _publish_diagnostics(self, t_ns: int, level: int, message: str, values: dict) -> None:
-        values = {
-            **values,
-            "rejected_messages": sum(rejection_counts(self).values()),
-            **parameter_diagnostics(self),
-        }
-        status = DiagnosticStatusSample(f"{NODE_NAME}: inertia setpoint", level, message, values)
-        try:
-            self._diagnostics_pub.publish(diagnostics_to_msg(t_ns, [status]))
-        except MessageValidationError as exc:
-            self.get_logger().error(f"diagnostics not published: {exc}")
+            publish_status(
+                self,
+                self._diagnostics_pub,
+                answer.t_ns,
+                f"{NODE_NAME}: inertia setpoint",
+                answer.diagnostics,
+            )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -11,9 +11,8 @@ rejected for its contents leaves it too; everything the node publishes is finite
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -39,8 +38,16 @@ from splitter_mpc.gait_phase_manager_node import GaitPhaseManagerNode
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS
-from splitter_msgs_py.inspection import non_finite_fields, record_publications
+from splitter_msgs_py.inspection import record_publications
 from splitter_msgs_py.parameters import rejection_counts
+from splitter_msgs_py.testing import (
+    ANY_FLOAT,
+    ANY_TEXT,
+    ANY_VECTOR3,
+    FLOAT_LIST,
+    assert_finite,
+    node_under_test,
+)
 
 # An overflow inside a callback means an implausible number got past validation.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
@@ -60,24 +67,7 @@ PLAN = [
     Parameter("w_ref_rad_s", value=[0.0, 1.0, 0.0]),
     Parameter("attitude_reference", value="momentum_aligned"),  # subscribes to the inertia
 ]
-SPECIAL_FLOATS = (
-    math.nan,
-    math.inf,
-    -math.inf,
-    1e300,
-    -1e300,
-    1e-300,
-    -1e-300,
-    0.0,
-    -0.0,
-    5e-324,
-    1.7976931348623157e308,
-    -1.7976931348623157e308,
-)
-ANY_FLOAT = st.one_of(st.floats(), st.sampled_from(SPECIAL_FLOATS))
-ANY_VECTOR3 = st.tuples(ANY_FLOAT, ANY_FLOAT, ANY_FLOAT)
 SMALL_VECTOR3 = st.tuples(*[st.floats(-2.0, 2.0)] * 3)
-ANY_TEXT = st.text(st.characters(blacklist_categories=("Cs",)), max_size=12)
 FRAME = st.one_of(st.sampled_from([names.WORLD_FRAME, names.BASE_FRAME, ""]), ANY_TEXT)
 # k ticks after the example's clock / an off-grid time / zero / far ahead / raw fields
 STAMP = st.one_of(
@@ -115,7 +105,6 @@ CONTACT = st.tuples(
     st.one_of(st.tuples(st.just(0.0), st.just(0.0), st.floats(0.0, 50.0)), ANY_VECTOR3),
     ANY_VECTOR3,
 )
-FLOAT_LIST = st.lists(ANY_FLOAT, max_size=27)
 JOINTS = st.one_of(
     st.tuples(st.permutations(names.JOINT_NAMES).map(list), st.floats(0.0, 8.0)).map(
         lambda x: (x[0], [x[1] if n == names.TETHER_JOINT else 0.0 for n in x[0]])
@@ -144,11 +133,6 @@ SETTINGS = settings(
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
-
-
-def assert_finite(msg: object, path: str = "msg") -> None:
-    """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
-    assert non_finite_fields(msg, path) == []
 
 
 # --- messages -------------------------------------------------------------------------------
@@ -238,16 +222,7 @@ class Stamps:
 @pytest.fixture
 def make_node(ros_context):
     """Builds a node that lives for one hypothesis example (``with make_node() as node``)."""
-
-    @contextmanager
-    def make(overrides=PLAN) -> Iterator[GaitPhaseManagerNode]:
-        node = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
-        try:
-            yield node
-        finally:
-            node.destroy_node()
-
-    return make
+    return functools.partial(node_under_test, GaitPhaseManagerNode, ros_context, PLAN)
 
 
 def rejections(node: GaitPhaseManagerNode) -> int:

@@ -164,8 +164,8 @@ def _arrays_from_bag(bag_dir: Path) -> dict:
     """Measured joint states, IMU rate, gait phase and jump thrust of a graph bag, by stamp."""
     from rclpy.serialization import deserialize_message
 
+    from splitter_bag import read_messages
     from splitter_msgs_py import names
-    from splitter_msgs_py.bag import read_messages
     from splitter_msgs_py.conversions import (
         TOPIC_MESSAGE_CLASSES,
         imu_from_msg,

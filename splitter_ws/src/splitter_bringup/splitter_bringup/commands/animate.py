@@ -45,9 +45,9 @@ def contact_forces_from_bag(bag_dir: Path, t_s: NDArray[np.float64]) -> NDArray[
     """(n, 2, 3) contact force of each hemi [N] at the series times, or None if not recorded."""
     from rclpy.serialization import deserialize_message
 
+    from splitter_bag.core.reader import read_messages
     from splitter_bringup.core.bag_series import forward_fill
     from splitter_msgs_py import names
-    from splitter_msgs_py.bag.reader import read_messages
     from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, wrench_from_msg
 
     stamps: dict[str, list[int]] = {t: [] for t in names.CONTACT_WRENCHES}
@@ -88,10 +88,10 @@ def write_animation(
 
 def main(args: argparse.Namespace) -> int:
     """Read the bag, render, print what was written; 1 on an unreadable bag, 2 on bad options."""
+    from splitter_bag.core.metadata import MetadataError
     from splitter_bringup.core.animation import FORMATS
     from splitter_bringup.core.bag_series import BagSeriesError
     from splitter_bringup.run_bag import read_run_series
-    from splitter_msgs_py.bag.metadata import MetadataError
 
     if args.out.suffix.lower() not in FORMATS:
         print(f"splitter animate: --out must end in {' or '.join(FORMATS)}", file=sys.stderr)

@@ -12,7 +12,7 @@ BENCHMARKS = {
         "splitter_bringup.commands.bench_mpc",
         "MPC solve times against a plain Opti+IPOPT baseline",
     ),
-    "bag": ("splitter_msgs_py.bench", "sustained bag write rate without loss"),
+    "bag": ("splitter_bag.bench", "sustained bag write rate without loss"),
     "graph": (
         "splitter_bringup.commands.bench_graph",
         "real-time factor of the lockstep node graph per scenario, against the library",

@@ -112,10 +112,10 @@ def plot_trajectory(series: RunSeries, path: Path, title: str = "") -> Path:
 
 
 def main(args: argparse.Namespace) -> int:
+    from splitter_bag.core.metadata import MetadataError
     from splitter_bringup.core.bag_series import BagSeriesError
     from splitter_bringup.core.plots import plot_flight, plot_quaternion_map
     from splitter_bringup.run_bag import read_run_series
-    from splitter_msgs_py.bag.metadata import MetadataError
 
     try:
         series = read_run_series(args.bag, gravity_m_s2=args.gravity)

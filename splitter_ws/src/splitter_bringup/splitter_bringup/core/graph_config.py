@@ -12,10 +12,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from splitter_bag.core.node_parameters import parameter_file_text
 from splitter_bringup.core.scenario import Scenario
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
 from splitter_msgs_py import names
-from splitter_msgs_py.bag.node_parameters import parameter_file_text
 
 
 @dataclass(frozen=True)
@@ -169,8 +169,8 @@ def graph_nodes(
         nodes.append(
             NodeLaunch(
                 RECORDER_NODE,
-                "splitter_msgs_py.recorder_node:main",
-                "splitter_msgs_py.recorder_node:RecorderNode",
+                "splitter_bag.recorder_node:main",
+                "splitter_bag.recorder_node:RecorderNode",
                 recorder_parameters(bag_dir),
             )
         )
@@ -209,7 +209,7 @@ def with_parameter_attachments(nodes: list[NodeLaunch]) -> list[NodeLaunch]:
     """``nodes`` with the recorder told to store every other node's parameter file.
 
     The recorder writes them into the bag as MCAP attachments ``params/<node>.yaml``
-    (:mod:`splitter_msgs_py.bag.node_parameters`), the same text as the run folder's
+    (:mod:`splitter_bag.core.node_parameters`), the same text as the run folder's
     ``params/<node>.yaml``: a bag copied alone still says how its nodes ran. Call it
     on the final list (after any change to a node's parameters).
     """

@@ -37,6 +37,7 @@ from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attit
 from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
+from splitter_mpc.core.solvers import Closable, close_part
 from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
@@ -169,7 +170,7 @@ def _finite_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64
     return arr
 
 
-class MorphingController:
+class MorphingController(Closable):
     """Re-plans on the re-plan grid, plays the plan back every control tick."""
 
     def __init__(
@@ -225,15 +226,7 @@ class MorphingController:
 
     def close(self) -> None:
         """Stop the MPC's solver worker (if any; the Opti baseline has none)."""
-        close = getattr(self.mpc, "close", None)
-        if close is not None:
-            close()
-
-    def __enter__(self) -> MorphingController:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+        close_part(self.mpc)
 
     @property
     def status(self) -> ControllerStatus:

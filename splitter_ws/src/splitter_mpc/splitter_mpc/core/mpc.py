@@ -117,9 +117,11 @@ from splitter_mpc.core.solver_worker import (
 )
 from splitter_mpc.core.solvers import (
     SOLVERS,
+    Closable,
     ProblemInstance,
     SolverOptions,
     SolverResult,
+    close_part,
     make_backend,
 )
 from splitter_msgs_py.core.parameter_fields import parameter_field
@@ -259,7 +261,7 @@ def build_backend(model: RobotModel, settings: MpcSettings):
     return make_backend(settings.solver, ocp, settings.options)
 
 
-class InertialMorphingMpc:
+class InertialMorphingMpc(Closable):
     """The OCP of :mod:`.ocp` with one back-end and a shifted warm start.
 
     With ``settings.options.isolated`` the back-end is a
@@ -297,15 +299,7 @@ class InertialMorphingMpc:
 
     def close(self) -> None:
         """Stop the solver worker, if any."""
-        close = getattr(self.backend, "close", None)
-        if close is not None:
-            close()
-
-    def __enter__(self) -> InertialMorphingMpc:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+        close_part(self.backend)
 
     def reset(self) -> None:
         """Forget the warm start (the next solve starts cold)."""

@@ -45,7 +45,7 @@ from typing import Protocol
 
 import numpy as np
 
-from splitter_mpc.core.solvers import ProblemInstance, SolverResult
+from splitter_mpc.core.solvers import Closable, ProblemInstance, SolverResult
 
 _LOG = logging.getLogger(__name__)
 POLL_PERIOD_S = 0.05  # [s] how often a waiting solve checks abandon()
@@ -183,7 +183,7 @@ def worker_main(argv: list[str] | None = None) -> int:
     return 0
 
 
-class SolverWorker:
+class SolverWorker(Closable):
     """A back-end in a child process; :meth:`solve` bounded by ``deadline_s`` of wall time."""
 
     def __init__(
@@ -284,12 +284,6 @@ class SolverWorker:
         except (BrokenPipeError, OSError, subprocess.TimeoutExpired) as exc:
             _LOG.debug("solver worker not stopped by request (%s): killing it", exc)
         self._kill()
-
-    def __enter__(self) -> SolverWorker:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
 
     @property
     def pid(self) -> int | None:

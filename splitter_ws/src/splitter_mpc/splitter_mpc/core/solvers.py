@@ -34,8 +34,10 @@ import logging
 import math
 import os
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Self
 
 import casadi as ca
 import numpy as np
@@ -56,6 +58,27 @@ OBJECTIVE_SCALE_MIN = 1e-8  # IPOPT's nlp_scaling_min_value: a wild start is not
 # waits for the controller, so a slow solve is waited for and results never depend on
 # load; the hardest solves take ~0.05 s (``splitter bench mpc``), a frozen one never ends.
 LOCKSTEP_MAX_TIME_S = 2.0
+
+
+class Closable(ABC):
+    """Something holding a process to stop: call :meth:`close`, or use it in ``with``."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop what it holds (idempotent)."""
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def close_part(part: object) -> None:
+    """``part.close()`` if ``part`` has one (a back-end without a worker has none)."""
+    close = getattr(part, "close", None)
+    if close is not None:
+        close()
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """rosbag2-compatible MCAP bags: writer, reader, recovery, playback schedule.
 
-The modules here are ROS-free except :mod:`splitter_msgs_py.bag.ros_qos`, the
+The modules here are ROS-free except :mod:`splitter_bag.ros_qos`, the
 bridge between rclpy QoS profiles and the bag's. Typical use::
 
-    from splitter_msgs_py.bag import BagWriter, read_messages, recover_bag
+    from splitter_bag import BagWriter, read_messages, recover_bag
 
     with BagWriter("runs/x/bag") as bag:
         bag.add_topic("/splitter/imu", "sensor_msgs/msg/Imu")
@@ -13,16 +13,16 @@ bridge between rclpy QoS profiles and the bag's. Typical use::
         ...
 """
 
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core.metadata import (
     BagMetadata,
     MetadataError,
     QosProfile,
     TopicMetadata,
     read_metadata,
 )
-from splitter_msgs_py.bag.reader import BagMessage, read_mcap_statistics, read_messages
-from splitter_msgs_py.bag.recover import RecoveryReport, recover_bag
-from splitter_msgs_py.bag.writer import BagWriter, BagWriterError, WriterOptions
+from splitter_bag.core.reader import BagMessage, read_mcap_statistics, read_messages
+from splitter_bag.core.recover import RecoveryReport, recover_bag
+from splitter_bag.core.writer import BagWriter, BagWriterError, WriterOptions
 
 __all__ = [
     "BagMessage",

@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from splitter_msgs_py.bag.reader import read_attachments
+from splitter_bag.core.reader import read_attachments
 
 ATTACHMENT_PREFIX = "params/"
 MEDIA_TYPE = "application/yaml"

@@ -24,7 +24,7 @@ from rclpy.qos import (
 )
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core.metadata import (
     DURABILITY_NAMES,
     DURATION_INFINITE_NS,
     HISTORY_NAMES,

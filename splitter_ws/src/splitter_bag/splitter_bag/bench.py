@@ -3,7 +3,7 @@
 Two figures, both counted back from the written bag (metadata.yaml, MCAP
 statistics and a full read must all agree with what was sent):
 
-1. writer: :class:`~splitter_msgs_py.bag.writer.BagWriter` alone, fed the graph's
+1. writer: :class:`~splitter_bag.core.writer.BagWriter` alone, fed the graph's
    message mix as serialized CDR (one simulator step: clock, IMU, odometry,
    inertia, joint states, two contact wrenches; the control topics every second
    step; markers and diagnostics at their rates);
@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from splitter_bag.core.info import check_consistency
+from splitter_bag.core.metadata import read_metadata
+from splitter_bag.core.reader import read_messages
+from splitter_bag.core.writer import BagWriter, WriterOptions
 from splitter_msgs_py import names
-from splitter_msgs_py.bag.info import check_consistency
-from splitter_msgs_py.bag.metadata import read_metadata
-from splitter_msgs_py.bag.reader import read_messages
-from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
 
 _NS_PER_S = 1_000_000_000
 SIM_STEP_NS = 5_000_000  # [ns] DESIGN.md section 7
@@ -168,13 +168,13 @@ def bench_graph_stage(rate: float, duration_s: float, bag_dir: Path) -> dict[str
     import rclpy
     from rclpy.parameter import Parameter
 
+    from splitter_bag.recorder_node import RecorderNode, recorder_executor
     from splitter_msgs_py.environment import ros_environment
-    from splitter_msgs_py.recorder_node import RecorderNode, recorder_executor
 
     domain_id = 150 + os.getpid() % 50
     env = ros_environment(domain_id=domain_id)
     code = (
-        "import sys; from splitter_msgs_py.bench import publish_main; "
+        "import sys; from splitter_bag.bench import publish_main; "
         f"publish_main({rate!r}, {duration_s!r}, {domain_id})"
     )
     context = rclpy.Context()

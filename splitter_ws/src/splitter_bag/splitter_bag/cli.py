@@ -13,9 +13,9 @@ import logging
 import sys
 from pathlib import Path
 
-from splitter_msgs_py.bag.info import bag_size_bytes, check_consistency, format_bag_info
-from splitter_msgs_py.bag.metadata import MetadataError, read_metadata
-from splitter_msgs_py.bag.recover import RecoveryError, recover_bag
+from splitter_bag.core.info import bag_size_bytes, check_consistency, format_bag_info
+from splitter_bag.core.metadata import MetadataError, read_metadata
+from splitter_bag.core.recover import RecoveryError, recover_bag
 
 _log = logging.getLogger(__name__)
 
@@ -112,7 +112,7 @@ def _recover(args: argparse.Namespace) -> int:
 def _play(args: argparse.Namespace) -> int:
     from rclpy.parameter import Parameter
 
-    from splitter_msgs_py import player_node
+    from splitter_bag import player_node
 
     overrides = [
         Parameter("bag", value=str(args.bag)),
@@ -131,7 +131,7 @@ def _play(args: argparse.Namespace) -> int:
 def _record(args: argparse.Namespace) -> int:
     from rclpy.parameter import Parameter
 
-    from splitter_msgs_py import recorder_node
+    from splitter_bag import recorder_node
 
     overrides = [
         Parameter("output", value=args.output),

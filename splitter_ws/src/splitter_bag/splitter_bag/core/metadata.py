@@ -24,7 +24,7 @@ from typing import Any
 
 import yaml
 
-from splitter_msgs_py.bag import yamlcpp
+from splitter_bag.core import yamlcpp
 
 METADATA_FILENAME = "metadata.yaml"
 METADATA_VERSION = 9

@@ -18,13 +18,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 
+from splitter_bag import read_messages, read_metadata, recover_bag
+from splitter_bag.core.info import check_consistency
+from splitter_bag.recorder_node import RecorderNode
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names, qos
-from splitter_msgs_py.bag import read_messages, read_metadata, recover_bag
-from splitter_msgs_py.bag.info import check_consistency
 from splitter_msgs_py.environment import ros_environment
 from splitter_msgs_py.parameters import InvalidParameterError
-from splitter_msgs_py.recorder_node import RecorderNode
 
 STEP_NS = 5_000_000  # [ns]
 
@@ -175,7 +175,7 @@ def _start_recorder(bag_dir: Path) -> subprocess.Popen:
         [
             sys.executable,
             "-c",
-            "from splitter_msgs_py.recorder_node import main; main()",
+            "from splitter_bag.recorder_node import main; main()",
             "--ros-args",
             "-p",
             f"output:={bag_dir}",

@@ -22,16 +22,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
-from splitter_msgs_py import names, qos
-from splitter_msgs_py.bag.metadata import read_metadata
-from splitter_msgs_py.bag.playback import (
+from splitter_bag.core.metadata import read_metadata
+from splitter_bag.core.playback import (
     PlaybackClock,
     seconds_to_ns,
     select_topics,
 )
-from splitter_msgs_py.bag.reader import BagMessage, read_messages
-from splitter_msgs_py.bag.ros_params import declare_topic_list
-from splitter_msgs_py.bag.ros_qos import publisher_qos
+from splitter_bag.core.reader import BagMessage, read_messages
+from splitter_bag.ros_params import declare_topic_list
+from splitter_bag.ros_qos import publisher_qos
+from splitter_msgs_py import names, qos
 from splitter_msgs_py.conversions import clock_to_msg, message_class
 from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters

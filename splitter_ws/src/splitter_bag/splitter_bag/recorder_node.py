@@ -12,7 +12,7 @@ sees). Publish time is the ``header.stamp`` of stamped types, else the log time
 (``publish_time: header``), or the middleware's source timestamp
 (``source_timestamp``, what rosbag2 Jazzy stores).
 ``node_parameters`` (the launcher gives every node's parameter file) go into
-the bag as MCAP attachments (:mod:`splitter_msgs_py.bag.node_parameters`).
+the bag as MCAP attachments (:mod:`splitter_bag.core.node_parameters`).
 SIGINT and SIGTERM finish the bag (summary, metadata.yaml).
 """
 
@@ -30,21 +30,21 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from splitter_msgs_py.bag import definitions
-from splitter_msgs_py.bag.node_parameters import (
+from splitter_bag.core import definitions
+from splitter_bag.core.node_parameters import (
     MEDIA_TYPE,
     ParameterFileError,
     attachment_name,
     parse_parameter_file,
 )
-from splitter_msgs_py.bag.playback import seconds_to_ns, select_topics
-from splitter_msgs_py.bag.ros_params import (
+from splitter_bag.core.playback import seconds_to_ns, select_topics
+from splitter_bag.core.writer import BagWriter, WriterOptions
+from splitter_bag.ros_params import (
     declare_key_values,
     declare_string_list,
     declare_topic_list,
 )
-from splitter_msgs_py.bag.ros_qos import offered_qos_profiles, subscription_qos, type_hash_of
-from splitter_msgs_py.bag.writer import BagWriter, WriterOptions
+from splitter_bag.ros_qos import offered_qos_profiles, subscription_qos, type_hash_of
 from splitter_msgs_py.conversions import message_class
 from splitter_msgs_py.executors import make_executor
 from splitter_msgs_py.node_pattern import run_node

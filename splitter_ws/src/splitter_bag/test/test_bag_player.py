@@ -12,11 +12,11 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
+from splitter_bag import BagWriter, QosProfile
+from splitter_bag.core.playback import PlaybackClock, parse_topic_list, select_topics
+from splitter_bag.player_node import PlayerNode
 from splitter_msgs_py import conversions as cv
-from splitter_msgs_py.bag import BagWriter, QosProfile
-from splitter_msgs_py.bag.playback import PlaybackClock, parse_topic_list, select_topics
 from splitter_msgs_py.parameters import InvalidParameterError
-from splitter_msgs_py.player_node import PlayerNode
 
 START_NS = 10_000_000_000  # [ns] bag start (log time)
 A_PERIOD_NS = 50_000_000  # [ns]

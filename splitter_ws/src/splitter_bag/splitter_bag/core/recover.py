@@ -25,7 +25,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core.metadata import (
     MCAP_METADATA_KEY,
     MCAP_METADATA_NAME,
     TIME_POINT_MAX_NS,
@@ -39,8 +39,8 @@ from splitter_msgs_py.bag.metadata import (
     ros_distro,
     write_metadata,
 )
-from splitter_msgs_py.bag.reader import sorted_mcap_files
-from splitter_msgs_py.bag.writer import LIBRARY, PROFILE
+from splitter_bag.core.reader import sorted_mcap_files
+from splitter_bag.core.writer import LIBRARY, PROFILE
 
 _log = logging.getLogger(__name__)
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from splitter_msgs_py.bag.playback import parse_topic_list
+from splitter_bag.core.playback import parse_topic_list
 from splitter_msgs_py.parameters import READ_ONLY_NOTE, InvalidParameterError
 
 

@@ -22,7 +22,7 @@ from mcap.reader import make_reader
 from mcap.records import Attachment
 from mcap.stream_reader import StreamReader
 
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core.metadata import (
     METADATA_FILENAME,
     BagMetadata,
     MetadataError,

@@ -18,7 +18,7 @@ Layout, after rosbag2_cpp ``SequentialWriter`` and rosbag2_storage_mcap:
 Crash safety: chunks are closed by this class (at ``chunk_size_bytes`` of message
 records, or ``flush_period_s`` after the chunk's first message) and every closed
 chunk is handed to the operating system at once, so a process killed with SIGKILL
-loses at most the chunk it was filling; :func:`splitter_msgs_py.bag.recover.recover_bag`
+loses at most the chunk it was filling; :func:`splitter_bag.core.recover.recover_bag`
 turns what is left into a complete bag.
 """
 
@@ -37,8 +37,8 @@ import mcap
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from splitter_msgs_py.bag import definitions
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core import definitions
+from splitter_bag.core.metadata import (
     MCAP_METADATA_KEY,
     MCAP_METADATA_NAME,
     TIME_POINT_MAX_NS,
@@ -261,7 +261,7 @@ class BagWriter:
         """Store a file in the current ``.mcap`` as an MCAP attachment (e.g. parameters).
 
         rosbag2 ignores attachments; ``mcap list attachments`` / ``mcap get attachment``
-        and :func:`splitter_msgs_py.bag.reader.read_attachments` read them back.
+        and :func:`splitter_bag.core.reader.read_attachments` read them back.
         """
         self._check_open()
         f = self._require_file()

@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from splitter_msgs_py.bag import definitions, yamlcpp
-from splitter_msgs_py.bag.info import format_bag_info, format_file_size
-from splitter_msgs_py.bag.metadata import (
+from splitter_bag.core import definitions, yamlcpp
+from splitter_bag.core.info import format_bag_info, format_file_size
+from splitter_bag.core.metadata import (
     DURATION_INFINITE_NS,
     BagMetadata,
     FileInformation,
@@ -242,7 +242,7 @@ def test_info_text_matches_ros2_bag_info(monkeypatch: pytest.MonkeyPatch) -> Non
 
 
 def test_config_files_declare_every_node_parameter() -> None:
-    from splitter_msgs_py import player_node, recorder_node
+    from splitter_bag import player_node, recorder_node
 
     config = Path(__file__).resolve().parents[1] / "config"
     for node_module, file_name in ((recorder_node, "recorder.yaml"), (player_node, "player.yaml")):

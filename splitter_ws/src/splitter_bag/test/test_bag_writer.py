@@ -16,9 +16,7 @@ from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 
-from splitter_msgs_py import conversions as cv
-from splitter_msgs_py import names
-from splitter_msgs_py.bag import (
+from splitter_bag import (
     BagWriter,
     BagWriterError,
     QosProfile,
@@ -28,8 +26,10 @@ from splitter_msgs_py.bag import (
     read_metadata,
     recover_bag,
 )
-from splitter_msgs_py.bag.info import check_consistency
-from splitter_msgs_py.bag.metadata import parse_serialized_metadata
+from splitter_bag.core.info import check_consistency
+from splitter_bag.core.metadata import parse_serialized_metadata
+from splitter_msgs_py import conversions as cv
+from splitter_msgs_py import names
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STEP_NS = 5_000_000  # [ns]
@@ -285,13 +285,13 @@ def test_empty_float64_sequences_decode_with_mcap_ros2_but_not_rosbags(tmp_path:
 def test_node_parameters_ride_in_the_bag_as_attachments_and_survive_recovery(
     tmp_path: Path,
 ) -> None:
-    from splitter_msgs_py.bag.node_parameters import (
+    from splitter_bag.core.node_parameters import (
         MEDIA_TYPE,
         attachment_name,
         bag_node_parameters,
         parameter_file_text,
     )
-    from splitter_msgs_py.bag.reader import read_attachments
+    from splitter_bag.core.reader import read_attachments
 
     params = {"q_w": [1.0, 2.0, 3.0], "objective": "momentum", "horizon": 25}
     text = parameter_file_text("inertial_morphing_mpc", params)

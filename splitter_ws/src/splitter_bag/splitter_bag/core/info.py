@@ -11,8 +11,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from splitter_msgs_py.bag.metadata import BagMetadata, read_metadata
-from splitter_msgs_py.bag.reader import read_mcap_statistics
+from splitter_bag.core.metadata import BagMetadata, read_metadata
+from splitter_bag.core.reader import read_mcap_statistics
 
 _INDENT = " " * 19
 _NS_PER_S = 1_000_000_000

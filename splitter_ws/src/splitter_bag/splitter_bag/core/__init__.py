@@ -1,0 +1,1 @@
+"""The ROS-free parts of the bag: MCAP writer and reader, metadata.yaml, recovery, playback."""
