@@ -57,3 +57,40 @@ def test_the_real_time_pace_follows_the_wall_clock_and_caps_its_catch_up() -> No
     assert pacer.steps_due(8.015625, 0) == (6, False)  # 15.6 ms wall x2 = 31.25 ms simulated
     assert pacer.steps_due(8.015625, 10 * MS) == (4, False)  # two of them already taken
     assert pacer.steps_due(9.0, 0) == (REAL_TIME_MAX_CATCH_UP, True)  # 400 due
+
+
+def test_the_tick_drives_the_simulator_as_the_direct_calls_do() -> None:
+    """SimulatorTick (what the node and the library loop drive) is the bare simulator
+    with the commands of each tick, bit for bit; its stamp rules refuse a stale command."""
+    from splitter_model.kinematics import joint_positions_from_radii
+    from splitter_msgs_py import names
+    from splitter_msgs_py.core.stamps import MessageValidationError
+    from splitter_sim.core.tick import SimulatorTick
+
+    model = RobotModel()
+
+    def make() -> Simulator:
+        initial = InitialState(position_m=(0.0, 0.0, 0.45), radii_m=(2.8, 0.2, 0.2))
+        return Simulator(model, SimConfig(gravity_m_s2=1.62), initial)
+
+    bare, tick = make(), SimulatorTick(make())
+    target = joint_positions_from_radii(model, (2.7, 0.25, 0.2))
+    for _ in range(60):
+        state = bare.state()
+        assert tick.state().t_ns == state.t_ns
+        if state.t_ns % (10 * MS) == 0:
+            force = np.array([5.0, 0.0, 40.0])
+            torque = np.cross(state.mass_positions_world_m[5] - state.position_m, force)
+            bare.command_jump_force(force, pushing_hemi(state, force, torque))
+            tick.command_jump(state.t_ns, force, torque)
+            bare.command_joints(target)
+            tick.command_joints(state.t_ns, target)
+        bare.step()
+        tick.step()
+    for name in ("position_m", "orientation_wxyz", "joint_position", "contact_force_n"):
+        np.testing.assert_array_equal(getattr(tick.state(), name), getattr(bare.state(), name))
+    now = tick.admit(names.JOINT_COMMANDS, tick.time_ns)
+    with pytest.raises(MessageValidationError, match="earlier"):
+        tick.admit(names.JOINT_COMMANDS, now - 5 * MS)
+    with pytest.raises(MessageValidationError, match="ahead"):
+        tick.admit(names.JUMP_COMMAND, now + 1)
