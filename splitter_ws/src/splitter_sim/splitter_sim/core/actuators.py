@@ -18,6 +18,8 @@ the limits, so it arrives exactly, at rest.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -88,11 +90,28 @@ def _name(index: int, joint_names: tuple[str, ...] | None) -> str:
     return f"joint {index}" if joint_names is None else f"'{joint_names[index]}'"
 
 
+# The servo's formulas are written once, for numpy arrays (ARRAY_MATH) and for the
+# CasADi symbols of the simulator's compiled kernels (the ``casadi`` module): ``ops``
+# is a namespace of elementwise fabs, sign, sqrt, fmax, fmin, logic_and, logic_or and
+# if_else (select), with casadi's names.
+ARRAY_MATH = SimpleNamespace(
+    fabs=np.abs,
+    sign=np.sign,
+    sqrt=np.sqrt,
+    fmax=np.maximum,
+    fmin=np.minimum,
+    logic_and=np.logical_and,
+    logic_or=np.logical_or,
+    if_else=np.where,
+)
+
+
 def safe_closing_speed(
     distance: NDArray[np.float64],
     closing_speed: NDArray[np.float64],
     accel_max: NDArray[np.float64],
     dt: float,
+    ops: Any = ARRAY_MATH,
 ) -> NDArray[np.float64]:
     """Largest closing speed at the end of this step from which the servo still stops in time.
 
@@ -105,7 +124,7 @@ def safe_closing_speed(
     """
     a_dt = accel_max * dt
     radicand = a_dt * a_dt - a_dt * closing_speed + 2.0 * accel_max * distance
-    return -a_dt + np.sqrt(np.maximum(radicand, 0.0))
+    return -a_dt + ops.sqrt(ops.fmax(radicand, 0.0))
 
 
 def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
@@ -125,28 +144,42 @@ def servo_acceleration(  # noqa: PLR0917  (the servo state and target, in order)
     reaches zero without changing sign; otherwise the servo accelerates toward
     the largest safe closing speed (:func:`safe_closing_speed`), saturated.
     """
-    a_max = limits.acceleration_max
-    v_max = limits.speed_max
+    return servo_law(
+        ARRAY_MATH, q, qd, q_target, qd_target, limits.acceleration_max, limits.speed_max, dt
+    )
+
+
+def servo_law(  # noqa: PLR0917  (the servo state, target and limits, in order)
+    ops: Any,
+    q: Any,
+    qd: Any,
+    q_target: Any,
+    qd_target: Any,
+    a_max: Any,
+    v_max: Any,
+    dt: Any,
+) -> Any:
+    """:func:`servo_acceleration` for arrays or symbols, with the math namespace ``ops``."""
     e = q_target - q
     de = qd_target - qd
     a0 = (e + 1.5 * de * dt) / (dt * dt)
     a1 = de / dt - a0
     e1 = e + de * dt - 0.5 * a0 * dt * dt
     de1 = de - a0 * dt
-    deadbeat = (
-        (np.abs(a0) <= a_max)
-        & (np.abs(a1) <= a_max)
-        & (np.abs(qd + a0 * dt) <= v_max)
-        & (e * e1 >= 0.0)
-        & (de * de1 >= 0.0)
-        & (e1 * de1 <= 0.0)
+    both = ops.logic_and
+    deadbeat = both(
+        both(
+            both(ops.fabs(a0) <= a_max, ops.fabs(a1) <= a_max),
+            both(ops.fabs(qd + a0 * dt) <= v_max, e * e1 >= 0.0),
+        ),
+        both(de * de1 >= 0.0, e1 * de1 <= 0.0),
     )
-    direction = np.sign(e)
+    direction = ops.sign(e)
     closing = -direction * de
-    v_end = safe_closing_speed(np.abs(e), closing, a_max, dt)
-    v_des = np.clip(qd_target + direction * v_end, -v_max, v_max)
-    a_track = np.clip((v_des - qd) / dt, -a_max, a_max)
-    return np.where(deadbeat, a0, a_track)
+    v_end = safe_closing_speed(ops.fabs(e), closing, a_max, dt, ops)
+    v_des = ops.fmin(ops.fmax(qd_target + direction * v_end, -v_max), v_max)
+    a_track = ops.fmin(ops.fmax((v_des - qd) / dt, -a_max), a_max)
+    return ops.if_else(deadbeat, a0, a_track)
 
 
 def command_target(
@@ -180,17 +213,21 @@ def snap_arrived(
     qd_target: NDArray[np.float64],
 ) -> bool:
     """Put joints within round-off of a resting target exactly on it; True if any moved."""
-    arrived = (
-        (qd_target == 0.0)
-        & (np.abs(q - q_target) <= ARRIVAL_TOLERANCE)
-        & (np.abs(qd) <= ARRIVAL_TOLERANCE)
-        & ((q != q_target) | (qd != 0.0))
-    )
+    arrived = arrived_at_rest(ARRAY_MATH, q, qd, q_target, qd_target)
     if not arrived.any():
         return False
     q[arrived] = q_target[arrived]
     qd[arrived] = 0.0
     return True
+
+
+def arrived_at_rest(ops: Any, q: Any, qd: Any, q_target: Any, qd_target: Any) -> Any:
+    """Whether a joint is within round-off of its resting target but not exactly on it."""
+    both = ops.logic_and
+    return both(
+        both(qd_target == 0.0, ops.fabs(q - q_target) <= ARRIVAL_TOLERANCE),
+        both(ops.fabs(qd) <= ARRIVAL_TOLERANCE, ops.logic_or(q != q_target, qd != 0.0)),
+    )
 
 
 @dataclass(frozen=True)

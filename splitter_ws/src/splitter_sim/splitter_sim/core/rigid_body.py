@@ -29,12 +29,20 @@ obeys ``dT/dt = P + (power of external forces about the COM)``. With ``h = 0``
 this is the DESIGN.md formula ``dE/dt = w.tau - 1/2 w'(dI/dt)w``. Gyroscopic
 forces do no work (``w . (w x L) = 0``), so the energy balance holds whatever
 the gyroscopic sign: only world-frame angular momentum detects that error.
+
+:func:`state_derivative` and :func:`rk4` are the one description of these equations:
+the compiled kernels (:mod:`.kernels`) build their graph by calling them with CasADi
+symbols (only arithmetic, the square root passed in, and the external loads as a
+function: :func:`thrust_and_contact_load` branches, the kernels select).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import Any
 
+from splitter_model.rotations import quaternion_to_matrix_entries as rotation_matrix
 from splitter_sim.core.contact import ground_contact_force
 from splitter_sim.core.shape import Shape
 
@@ -84,104 +92,45 @@ class DynamicsParameters:
         self.thrust: tuple[tuple[int, float, float, float], ...] = ()
 
 
-def rotation_matrix(qw: float, qx: float, qy: float, qz: float) -> tuple[float, ...]:
-    """Row-major world <- base rotation of a (not necessarily unit) quaternion."""
-    n = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
-    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
-    xy, xz, yz = qx * qy, qx * qz, qy * qz
-    wx, wy, wz = qw * qx, qw * qy, qw * qz
-    return (
-        (ww + xx - yy - zz) * n,
-        2.0 * (xy - wz) * n,
-        2.0 * (xz + wy) * n,
-        2.0 * (xy + wz) * n,
-        (ww - xx + yy - zz) * n,
-        2.0 * (yz - wx) * n,
-        2.0 * (xz - wy) * n,
-        2.0 * (yz + wx) * n,
-        (ww - xx - yy + zz) * n,
-    )
-
-
 def angular_velocity(shape: Shape, lx: float, ly: float, lz: float) -> tuple[float, float, float]:
     """w = I^-1 (L - h), body frame [rad/s]."""
-    a, b, c, d, e, f = shape.inertia_inv
     hx, hy, hz = shape.h
-    x, y, z = lx - hx, ly - hy, lz - hz
-    return a * x + d * y + e * z, d * x + b * y + f * z, e * x + f * y + c * z
+    return symmetric_product(shape.inertia_inv, lx - hx, ly - hy, lz - hz)
 
 
 def state_derivative(
-    s: list[float] | tuple[float, ...],
-    shape: Shape,
-    prm: DynamicsParameters,
+    s: Sequence[Any],
+    shape: Any,
+    prm: Any,
     out: dict | None = None,
-) -> list[float]:
+    external: Callable[..., tuple[Any, ...]] | None = None,
+) -> list[Any]:
     """Time derivative of the 14-float state with the shape at the same instant.
 
     ``out``, when given, receives the intermediate quantities (forces per mass,
     angular velocity and acceleration, rotation) for outputs: one code path for
     integration and reporting.
+
+    The one description of the equations of motion: the compiled kernels call it
+    with CasADi symbols, ``shape`` and ``prm`` then being namespaces of the same
+    attribute names and ``external`` their selection form of the external loads.
+    ``external(s, w, shape, prm, out)`` returns the loads (:func:`external_load`);
+    None: :func:`thrust_and_contact_load` when ``prm`` has thrust or contact
+    candidates (or ``out`` is given), else none.
     """
-    _, _, pz, vx, vy, vz, qw, qx, qy, qz, lx, ly, lz = s[:13]
+    vx, vy, vz, qw, qx, qy, qz, lx, ly, lz = s[3:13]
     ia, ib, ic, i_d, ie, i_f = shape.inertia_inv
     hx, hy, hz = shape.h
     ex, ey, ez = lx - hx, ly - hy, lz - hz
     wx = ia * ex + i_d * ey + ie * ez  # w = I^-1 (L - h)
     wy = i_d * ex + ib * ey + i_f * ez
     wz = ie * ex + i_f * ey + ic * ez
-    fx = fy = fz = 0.0  # external non-gravity force, world [N]
-    tx = ty = tz = 0.0  # external torque about the COM, body [N m]
-    p_rel = 0.0  # power of external forces on the relative motion [W]
-    forces = [] if out is not None else None
-    thrust, candidates = prm.thrust, prm.contact
-    if thrust or candidates or out is not None:
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
-        if not shape.relative_ready:
-            shape.relative()
-        rx, ry, rz = shape.rx, shape.ry, shape.rz
-        dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
-    for i, gx, gy, gz in thrust:
-        bx = r00 * gx + r10 * gy + r20 * gz
-        by = r01 * gx + r11 * gy + r21 * gz
-        bz = r02 * gx + r12 * gy + r22 * gz
-        fx += gx
-        fy += gy
-        fz += gz
-        tx += ry[i] * bz - rz[i] * by
-        ty += rz[i] * bx - rx[i] * bz
-        tz += rx[i] * by - ry[i] * bx
-        p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
-    if candidates:
-        k, c = prm.contact_stiffness, prm.contact_damping
-        mu, ct = prm.friction_coefficient, prm.friction_damping
-        for i in candidates:
-            x, y, z = rx[i], ry[i], rz[i]
-            height = pz + r20 * x + r21 * y + r22 * z
-            if height >= 0.0:
-                continue
-            # velocity of the mass: v + R (w x r + dr)
-            ux = wy * z - wz * y + dvx[i]
-            uy = wz * x - wx * z + dvy[i]
-            uz = wx * y - wy * x + dvz[i]
-            mvx = vx + r00 * ux + r01 * uy + r02 * uz
-            mvy = vy + r10 * ux + r11 * uy + r12 * uz
-            mvz = vz + r20 * ux + r21 * uy + r22 * uz
-            gx, gy, gz = ground_contact_force(height, mvx, mvy, mvz, k, c, mu, ct)
-            if gz == 0.0:
-                continue
-            bx = r00 * gx + r10 * gy + r20 * gz
-            by = r01 * gx + r11 * gy + r21 * gz
-            bz = r02 * gx + r12 * gy + r22 * gz
-            fx += gx
-            fy += gy
-            fz += gz
-            tx += y * bz - z * by
-            ty += z * bx - x * bz
-            tz += x * by - y * bx
-            p_rel += bx * dvx[i] + by * dvy[i] + bz * dvz[i]
-            if forces is not None:
-                forces.append((i, gx, gy, gz, height))
+    if external is None and (prm.thrust or prm.contact or out is not None):
+        external = thrust_and_contact_load
+    if external is None:
+        fx = fy = fz = tx = ty = tz = p_rel = 0.0
+    else:
+        fx, fy, fz, tx, ty, tz, p_rel = external(s, (wx, wy, wz), shape, prm, out)
     m_inv = 1.0 / prm.total_mass
     b = prm.damping
     ax = (fx - b * vx) * m_inv
@@ -198,10 +147,7 @@ def state_derivative(
         ex = dlx - (ia * wx + i_d * wy + ie * wz) - hdx
         ey = dly - (i_d * wx + ib * wy + i_f * wz) - hdy
         ez = dlz - (ie * wx + i_f * wy + ic * wz) - hdz
-        a, bb, cc, d, e, f = shape.inertia_inv
-        awx = a * ex + d * ey + e * ez
-        awy = d * ex + bb * ey + f * ez
-        awz = e * ex + f * ey + cc * ez
+        awx, awy, awz = symmetric_product(shape.inertia_inv, ex, ey, ez)
         w_idot_w = (
             ia * wx * wx
             + ib * wy * wy
@@ -217,13 +163,11 @@ def state_derivative(
             - p_rel
         )
         if out is not None:
-            out["rotation"] = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
             out["angular_velocity"] = (wx, wy, wz)
             out["angular_acceleration"] = (awx, awy, awz)
             out["force_world"] = (fx, fy, fz)
             out["torque_body"] = (tx, ty, tz)
             out["acceleration_world"] = (ax, ay, az)
-            out["contacts"] = forces
             out["actuator_power"] = power
     else:
         power = 0.0
@@ -245,6 +189,49 @@ def state_derivative(
     ]
 
 
+def thrust_and_contact_load(
+    s: Sequence[float],
+    w: tuple[float, float, float],
+    shape: Shape,
+    prm: DynamicsParameters,
+    out: dict | None,
+) -> tuple[float, ...]:
+    """:func:`external_load` of ``prm.thrust`` and of the ground contacts of ``prm.contact``.
+
+    Only the candidates below the ground that the ground pushes count. ``out``, when
+    given, receives the rotation and the contact forces (i, fx, fy, fz, height).
+    """
+    r = rotation_matrix(s[6], s[7], s[8], s[9])
+    if not shape.relative_ready:
+        shape.relative()
+    rx, ry, rz = shape.rx, shape.ry, shape.rz
+    dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
+    loads = [
+        (rx[i], ry[i], rz[i], dvx[i], dvy[i], dvz[i], gx, gy, gz) for i, gx, gy, gz in prm.thrust
+    ]
+    forces = []
+    if prm.contact:
+        pz, v = s[2], s[3:6]
+        _, _, _, _, _, _, r20, r21, r22 = r
+        k, c = prm.contact_stiffness, prm.contact_damping
+        mu, ct = prm.friction_coefficient, prm.friction_damping
+        for i in prm.contact:
+            x, y, z = rx[i], ry[i], rz[i]
+            height = pz + r20 * x + r21 * y + r22 * z
+            if height >= 0.0:
+                continue
+            mvx, mvy, mvz = mass_velocity(r, w, v, x, y, z, dvx[i], dvy[i], dvz[i])
+            gx, gy, gz = ground_contact_force(height, mvx, mvy, mvz, k, c, mu, ct)
+            if gz == 0.0:
+                continue
+            loads.append((x, y, z, dvx[i], dvy[i], dvz[i], gx, gy, gz))
+            forces.append((i, gx, gy, gz, height))
+    if out is not None:
+        out["rotation"] = r
+        out["contacts"] = forces
+    return external_load(r, loads)
+
+
 def rk4_step(  # noqa: PLR0917  (hot path)
     s: list[float],
     h: float,
@@ -257,17 +244,91 @@ def rk4_step(  # noqa: PLR0917  (hot path)
 
     The quaternion is renormalised after the step (unit norm kept exactly).
     """
+    return rk4(s, h, (shape_start, shape_mid, shape_end), prm, math.sqrt)
+
+
+# --- formulas written once for floats and CasADi symbols (the compiled kernels) ---------
+def symmetric_product(m: Sequence[Any], x: Any, y: Any, z: Any) -> tuple[Any, Any, Any]:
+    """``M (x, y, z)`` of a symmetric 3x3 matrix given as (xx, yy, zz, xy, xz, yz)."""
+    a, b, c, d, e, f = m
+    return a * x + d * y + e * z, d * x + b * y + f * z, e * x + f * y + c * z
+
+
+def mass_velocity(  # noqa: PLR0917  (hot path: positional scalars)
+    r: Sequence[Any],
+    w: Sequence[Any],
+    v: Sequence[Any],
+    x: Any,
+    y: Any,
+    z: Any,
+    dx: Any,
+    dy: Any,
+    dz: Any,
+) -> tuple[Any, Any, Any]:
+    """World velocity ``v + R (w x r + dr)`` of a mass at ``r`` moving at ``dr`` in the body."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+    wx, wy, wz = w
+    ux = wy * z - wz * y + dx
+    uy = wz * x - wx * z + dy
+    uz = wx * y - wy * x + dz
+    return (
+        v[0] + r00 * ux + r01 * uy + r02 * uz,
+        v[1] + r10 * ux + r11 * uy + r12 * uz,
+        v[2] + r20 * ux + r21 * uy + r22 * uz,
+    )
+
+
+def external_load(r: Sequence[Any], loads: Sequence[Sequence[Any]]) -> tuple[Any, ...]:
+    """Force (world), torque about the COM (body) and power on the relative motion.
+
+    ``loads``: per external force (x, y, z, dx, dy, dz, gx, gy, gz): the mass's
+    position and velocity relative to the COM (body) and the force (world) [N].
+    Returns (fx, fy, fz, tx, ty, tz, p_rel), summed in the order of ``loads``.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+    fx = fy = fz = 0.0  # external non-gravity force, world [N]
+    tx = ty = tz = 0.0  # external torque about the COM, body [N m]
+    p_rel = 0.0  # power of external forces on the relative motion [W]
+    for x, y, z, dx, dy, dz, gx, gy, gz in loads:
+        bx = r00 * gx + r10 * gy + r20 * gz
+        by = r01 * gx + r11 * gy + r21 * gz
+        bz = r02 * gx + r12 * gy + r22 * gz
+        fx += gx
+        fy += gy
+        fz += gz
+        tx += y * bz - z * by
+        ty += z * bx - x * bz
+        tz += x * by - y * bx
+        p_rel += bx * dx + by * dy + bz * dz
+    return fx, fy, fz, tx, ty, tz, p_rel
+
+
+def rk4(  # noqa: PLR0917  (hot path: positional)
+    s: Sequence[Any],
+    h: Any,
+    shapes: Sequence[Any],
+    prm: Any,
+    sqrt: Callable[[Any], Any],
+    external: Callable[..., tuple[Any, ...]] | None = None,
+) -> list[Any]:
+    """Classical RK4 of :func:`state_derivative` over ``h``, the shapes at 0, h/2 and h.
+
+    ``external`` as for :func:`state_derivative`; the quaternion (entries 6-9) is
+    renormalised after the step with ``sqrt``.
+    """
+    shape_start, shape_mid, shape_end = shapes
+    f = state_derivative
     half = 0.5 * h
-    k1 = state_derivative(s, shape_start, prm)
-    k2 = state_derivative([a + half * b for a, b in zip(s, k1, strict=True)], shape_mid, prm)
-    k3 = state_derivative([a + half * b for a, b in zip(s, k2, strict=True)], shape_mid, prm)
-    k4 = state_derivative([a + h * b for a, b in zip(s, k3, strict=True)], shape_end, prm)
+    k1 = f(s, shape_start, prm, None, external)
+    k2 = f([a + half * b for a, b in zip(s, k1, strict=True)], shape_mid, prm, None, external)
+    k3 = f([a + half * b for a, b in zip(s, k2, strict=True)], shape_mid, prm, None, external)
+    k4 = f([a + h * b for a, b in zip(s, k3, strict=True)], shape_end, prm, None, external)
     sixth = h / 6.0
     out = [
         a + sixth * (b1 + 2.0 * (b2 + b3) + b4)
         for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
     ]
-    n = 1.0 / math.sqrt(out[6] * out[6] + out[7] * out[7] + out[8] * out[8] + out[9] * out[9])
+    n = 1.0 / sqrt(out[6] * out[6] + out[7] * out[7] + out[8] * out[8] + out[9] * out[9])
     out[6] *= n
     out[7] *= n
     out[8] *= n
