@@ -3,7 +3,7 @@
 Thin ROS layer over the ``foxglove-sdk`` package: one Foxglove channel per graph
 topic, in the ROS 2 message encoding (``cdr`` payloads exactly as received with
 ``raw=True`` subscriptions, the ``ros2msg`` schema text rosbag2 writes, from
-:func:`splitter_msgs_py.bag.definitions.message_definition`), so Foxglove decodes
+:func:`splitter_bag.core.definitions.message_definition`), so Foxglove decodes
 them as it decodes a bag. Two derived channels complete the 3D scene, drawn from
 the typed scene (:class:`splitter_sim.core.scene.Scene`: the masses of
 ``/splitter/scene/masses`` with the latest odometry, IMU rate, inertia and contact
