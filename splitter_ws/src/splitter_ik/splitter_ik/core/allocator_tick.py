@@ -53,7 +53,7 @@ from splitter_model.model import (
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.parameter_fields import parameter_field
-from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, MessageValidationError, StampGate
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, StampGate
 
 _LOG = logging.getLogger(__name__)
 # [-] a setpoint moment above this many times the largest reachable moment of the model
@@ -133,11 +133,11 @@ def _no_clock() -> int | None:
     return None
 
 
-def _check_frame(frame_id: str) -> None:
-    if frame_id != names.BASE_FRAME:
-        raise MessageValidationError(
-            f"header.frame_id: expected '{names.BASE_FRAME}', got {frame_id!r}"
-        )
+def _frame_refusal(frame_id: str) -> str | None:
+    """Why an input in ``frame_id`` is refused (None: it is in ``base``)."""
+    if frame_id == names.BASE_FRAME:
+        return None
+    return f"header.frame_id: expected '{names.BASE_FRAME}', got {frame_id!r}"
 
 
 class AllocatorTick:
@@ -228,17 +228,12 @@ class AllocatorTick:
     ) -> TickOutput:
         """The inertia setpoint [kg m^2] stamped ``t_ns`` (admitted), answered."""
         setpoint = np.asarray(inertia_kg_m2, dtype=float)
-        try:
-            _check_frame(frame_id)
-            limit = self.max_setpoint_kg_m2
-            if not (np.all(np.isfinite(setpoint)) and np.all(setpoint > 0.0)) or np.any(
-                setpoint > limit
-            ):
-                raise MessageValidationError(
-                    f"vector: moments must be in (0, {limit:.4g}] kg m^2, got {setpoint.tolist()}"
-                )
-        except MessageValidationError as exc:
-            return self.rejected(names.INERTIA_SETPOINT, t_ns, str(exc))
+        limit = self.max_setpoint_kg_m2
+        reason = _frame_refusal(frame_id)
+        if reason is None and not np.all((setpoint > 0.0) & (setpoint <= limit)):  # NaN too
+            reason = f"vector: moments must be in (0, {limit:.4g}] kg m^2, got {setpoint.tolist()}"
+        if reason is not None:
+            return self.rejected(names.INERTIA_SETPOINT, t_ns, reason)
         self.last_good_setpoint = setpoint
         return self._answer(t_ns, setpoint)
 
@@ -247,14 +242,11 @@ class AllocatorTick:
     ) -> TickOutput:
         """The body rate [rad/s] stamped ``t_ns`` (admitted); answers a tick it completes."""
         w = np.array(angular_velocity_rad_s, dtype=float)
-        try:
-            _check_frame(frame_id)
-            if not np.all(np.isfinite(w)) or np.any(np.abs(w) > MAX_BODY_RATE_RAD_S):
-                raise MessageValidationError(
-                    f"angular_velocity: {w.tolist()} rad/s beyond {MAX_BODY_RATE_RAD_S:g} rad/s"
-                )
-        except MessageValidationError as exc:
-            return self.rejected(names.IMU, t_ns, str(exc))
+        reason = _frame_refusal(frame_id)
+        if reason is None and not np.all(np.abs(w) <= MAX_BODY_RATE_RAD_S):  # NaN too
+            reason = f"angular_velocity: {w.tolist()} rad/s beyond {MAX_BODY_RATE_RAD_S:g} rad/s"
+        if reason is not None:
+            return self.rejected(names.IMU, t_ns, reason)
         self.angular_velocity, self.imu_t_ns = w, t_ns
         if self._pending_fallback_ns is not None and self._pending_fallback_ns == t_ns:
             return self._answer_fallback(t_ns)
