@@ -36,6 +36,7 @@ import logging
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -109,8 +110,7 @@ class DiagnosticsWindow:
     max_tether_speed: float = 0.0  # [m/s]
 
 
-@dataclass(frozen=True)
-class AllocatorStatus:
+class AllocatorStatus(NamedTuple):
     """A diagnostics status as plain data: level 0 (OK) or 1 (WARN), message, values."""
 
     level: int
