@@ -11,12 +11,15 @@ form by ``|q|^2``::
          [2 (xz - wy),        2 (yz + wx),        w2 - x2 - y2 + z2]] / |q|^2
 
 :func:`quaternion_to_matrix` is the same as a (3, 3) numpy array, for everything
-that is not the hot path. ROS-free, numpy-only.
+that is not the hot path; :func:`quaternion_product` the Hamilton product over
+scalars (the MPC's symbolic attitude kinematics), :func:`quaternion_multiply` as
+numpy. ROS-free, numpy-only.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -60,15 +63,20 @@ def quaternion_to_matrix(q_wxyz: ArrayLike) -> NDArray[np.float64]:
     return np.array(quaternion_to_matrix_entries(w, x, y, z)).reshape(3, 3)
 
 
-def quaternion_multiply(p_wxyz: ArrayLike, q_wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Hamilton product ``p (x) q``."""
-    pw, px, py, pz = np.asarray(p_wxyz, dtype=float).reshape(4).tolist()
-    qw, qx, qy, qz = np.asarray(q_wxyz, dtype=float).reshape(4).tolist()
-    return np.array(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ]
+def quaternion_product(p: Sequence[Any], q: Sequence[Any]) -> tuple[Any, Any, Any, Any]:
+    """Hamilton product ``p (x) q`` of two indexable quaternions (floats or CasADi symbols)."""
+    pw, px, py, pz = p[0], p[1], p[2], p[3]
+    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
+    return (
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
     )
+
+
+def quaternion_multiply(p_wxyz: ArrayLike, q_wxyz: ArrayLike) -> NDArray[np.float64]:
+    """Hamilton product ``p (x) q`` as a numpy array."""
+    p = np.asarray(p_wxyz, dtype=float).reshape(4).tolist()
+    q = np.asarray(q_wxyz, dtype=float).reshape(4).tolist()
+    return np.array(quaternion_product(p, q))

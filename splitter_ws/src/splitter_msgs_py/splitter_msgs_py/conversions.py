@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 
+from splitter_model.rotations import quaternion_to_matrix
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MessageValidationError
 
@@ -82,18 +83,6 @@ def _finite_xyz(v, field_name: str) -> NDArray[np.float64]:
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise MessageValidationError(f"{field_name}: non-finite value in {[x, y, z]}")
     return np.array([x, y, z])
-
-
-def quaternion_to_matrix(q_wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix (world <- base) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = np.asarray(q_wxyz, dtype=float).tolist()
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 # --- time ---------------------------------------------------------------------------

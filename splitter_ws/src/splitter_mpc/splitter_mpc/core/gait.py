@@ -71,6 +71,8 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.rotations import quaternion_multiply
+from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
 from splitter_msgs_py import names
 from splitter_msgs_py.core.parameter_fields import parameter_field, parameter_fields
 
@@ -127,32 +129,6 @@ def _quaternion(value: ArrayLike, name: str) -> NDArray[np.float64]:
 
 
 # --- quaternions (scalar first, world <- base) -------------------------------------------
-def rotation_matrix(q_wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix (world <- base) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = (float(c) for c in np.asarray(q_wxyz, dtype=float))
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def quaternion_multiply(p_wxyz: ArrayLike, q_wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Hamilton product ``p (x) q``."""
-    pw, px, py, pz = (float(c) for c in np.asarray(p_wxyz, dtype=float))
-    qw, qx, qy, qz = (float(c) for c in np.asarray(q_wxyz, dtype=float))
-    return np.array(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ]
-    )
-
-
 def propagate_attitude(
     q_wxyz: ArrayLike, angular_velocity_rad_s: ArrayLike, dt_s: float
 ) -> NDArray[np.float64]:

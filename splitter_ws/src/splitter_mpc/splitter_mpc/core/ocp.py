@@ -60,6 +60,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.rotations import quaternion_product
 from splitter_mpc.core.limits import MorphingLimits
 
 N_MEASURED = 10  # measured state [w (3), q (4, wxyz), principal moments (3)]
@@ -73,18 +74,6 @@ OBJECTIVES = ("momentum", "paper")
 INTEGRATORS = ("euler", "rk4")
 _AXIS_EPS = 1e-9  # [rad/s] below this |w_ref| has no axis: the paper's J_w is used
 _SLACK_QUADRATIC = 1e-4  # [s^4/rad^4] keeps the slack's Hessian regular
-
-
-def quat_multiply(p: ca.SX, q: ca.SX) -> ca.SX:
-    """Hamilton product of scalar-first quaternions (symbolic)."""
-    pw, px, py, pz = p[0], p[1], p[2], p[3]
-    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
-    return ca.vertcat(
-        pw * qw - px * qx - py * qy - pz * qz,
-        pw * qx + px * qw + py * qz - pz * qy,
-        pw * qy - px * qz + py * qw + pz * qx,
-        pw * qz + px * qy - py * qx + pz * qw,
-    )
 
 
 @dataclass(frozen=True)
@@ -123,7 +112,7 @@ def _euler_step(
     if not layout.attitude:
         return momentum_next, None
     q = x[layout.q]
-    return momentum_next, q + 0.5 * dt_s * quat_multiply(q, ca.vertcat(0, w))
+    return momentum_next, q + 0.5 * dt_s * ca.vertcat(*quaternion_product(q, ca.vertcat(0, w)))
 
 
 _RK4_STAGES = (0.0, 0.5, 0.5, 1.0)  # [-] stage times as a share of the step
@@ -161,7 +150,9 @@ def _rk4_step(
         return h1, None
     return h1, _rk4(
         x[layout.q],
-        lambda q, stage: 0.5 * quat_multiply(q, ca.vertcat(0, stage_rates[stage])),
+        lambda q, stage: (
+            0.5 * ca.vertcat(*quaternion_product(q, ca.vertcat(0, stage_rates[stage])))
+        ),
         dt_s,
     )
 

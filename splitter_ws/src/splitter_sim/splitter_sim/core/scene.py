@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
+from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
 from splitter_sim.core.shape import BODY_INDICES, ShapeKinematics
 from splitter_sim.core.simulator import SimState
 
@@ -55,22 +56,6 @@ class Arrow:
     @property
     def length_m(self) -> float:
         return float(np.linalg.norm(self.end - self.start))
-
-
-def rotation_matrix(orientation_wxyz: ArrayLike) -> NDArray[np.float64]:
-    """Rotation (3, 3) body -> world of a quaternion (w, x, y, z); normalised first."""
-    q = np.asarray(orientation_wxyz, dtype=float)
-    norm = float(np.linalg.norm(q))
-    if not np.isfinite(norm) or norm < 1e-12:
-        raise ValueError(f"orientation {q} is not a rotation")
-    w, x, y, z = q / norm
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 class SceneGeometry:
