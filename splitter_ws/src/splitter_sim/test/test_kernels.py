@@ -1,12 +1,14 @@
 """The compiled kernels (:mod:`splitter_sim.core.kernels`) against the pure-Python code.
 
-The kernels mirror the Python formulas operation by operation, so every quantity
-agrees to round-off (1e-12 relative here; in practice a few ulp), and whole runs
-of the simulator agree to round-off as well.
+The kernels are generated from the Python formulas themselves (called with CasADi
+symbols), operation by operation, so every quantity agrees to round-off (1e-12
+relative here; in practice a few ulp), and whole runs of the simulator agree to
+round-off as well.
 """
 
 from __future__ import annotations
 
+import inspect
 import logging
 
 import numpy as np
@@ -269,3 +271,25 @@ def test_the_environment_switch_selects_pure_python(monkeypatch: pytest.MonkeyPa
     monkeypatch.setenv(kernels.ENV_SWITCH, "0")
     assert kernels.load_library() is None
     assert not Simulator(MODEL, SimConfig(), InitialState()).compiled
+
+
+def test_the_cached_library_is_named_by_every_module_its_graph_is_made_of(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    names = {module.__name__ for module in kernels.fingerprint_modules()}
+    assert {
+        "splitter_model.rotations",
+        "splitter_sim.core.shape",
+        "splitter_sim.core.rigid_body",
+        "splitter_sim.core.actuators",
+        "splitter_sim.core.kernels",
+    } <= names
+    before = kernels._fingerprint()
+    source = inspect.getsource
+    edited = "splitter_model.rotations"
+    monkeypatch.setattr(
+        inspect,
+        "getsource",
+        lambda module: source(module) + ("#" if module.__name__ == edited else ""),
+    )
+    assert kernels._fingerprint() != before  # a change of a shared formula rebuilds the C

@@ -430,18 +430,41 @@ def _write_source(path: Path) -> None:
     generator.generate(str(path.parent) + os.sep)
 
 
+# the functions of other modules the kernels' graphs are made of (their text is fingerprinted)
+GRAPH_FUNCTIONS = (
+    mass_motion,
+    about_com_moving,
+    relative_motion,
+    sym_inverse_det,
+    limb_constants,
+    servo_law,
+    advance,
+    arrived_at_rest,
+    rk4,
+    angular_velocity,
+    external_load,
+    mass_velocity,
+    rotation_matrix,
+)
+
+
+def fingerprint_modules() -> list[Any]:
+    """Every module the generated C is made from: this one, codegen, the graph functions'."""
+    from splitter_model import codegen, kinematics
+
+    modules = {codegen, kinematics, sys.modules[__name__]}
+    modules.update(inspect.getmodule(f) for f in GRAPH_FUNCTIONS)
+    return sorted(modules, key=lambda module: module.__name__)
+
+
 def _fingerprint() -> bytes:
     """The text of every module the generated C is made from (names the cached library).
 
     Generating the source takes about a second; hashing these files, a millisecond.
     """
-    from splitter_model import codegen, kinematics, rotations
-    from splitter_sim.core import actuators, rigid_body, shape
-
     digest = hashlib.sha256()
-    modules = (codegen, kinematics, rotations, actuators, rigid_body, shape)
-    for module in (*modules, sys.modules[__name__]):
-        digest.update(Path(inspect.getfile(module)).read_bytes())
+    for module in fingerprint_modules():
+        digest.update(inspect.getsource(module).encode())
     return digest.digest()
 
 
