@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from splitter_model.rotations import (
     quaternion_multiply,
+    quaternion_product,
     quaternion_to_matrix,
     quaternion_to_matrix_entries,
 )
@@ -84,3 +85,13 @@ def test_product_composes_rotations() -> None:
             Rotation.from_quat(p, scalar_first=True) * Rotation.from_quat(q, scalar_first=True)
         ).as_quat(scalar_first=True, canonical=False)
         np.testing.assert_allclose(pq / np.linalg.norm(pq), expected, atol=1e-14)
+
+
+def test_symbolic_product_is_the_numeric_product() -> None:
+    casadi = pytest.importorskip("casadi")
+    p, q = casadi.SX.sym("p", 4), casadi.SX.sym("q", 4)
+    f = casadi.Function("pq", [p, q], [casadi.vertcat(*quaternion_product(p, q))])
+    for a, b in zip(QUATERNIONS[:20], QUATERNIONS[20:40], strict=True):
+        np.testing.assert_allclose(
+            np.array(f(a, b)).ravel(), quaternion_multiply(a, b), rtol=0.0, atol=1e-15
+        )
