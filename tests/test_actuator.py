@@ -9,16 +9,16 @@ import math
 import numpy as np
 import pytest
 
-from splitter_bringup.commands import actuator as actuator_cli
-from splitter_bringup.core.series import RunSeries
-from splitter_ik.core.actuator_sizing import (
+from splitter_bringup.analysis.actuator_sizing import (
     PAPER_VALUES,
     JumpAssumptions,
     knee_moment_arm_m,
     leg_length_m,
     size_actuators,
 )
-from splitter_ik.core.run_check import check_run, limb_joint_torques_nm
+from splitter_bringup.analysis.run_check import check_run, limb_joint_torques_nm
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.cli import actuator as actuator_cli
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 

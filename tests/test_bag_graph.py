@@ -24,10 +24,10 @@ from rosbags.typesys import Stores, get_typestore
 
 from splitter_bag import read_mcap_statistics, read_messages, read_metadata
 from splitter_bringup.core.closed_loop import run_closed_loop
-from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.graph_run import run_graph
-from splitter_bringup.inprocess import record_graph
-from splitter_bringup.replay import replay_mpc
+from splitter_bringup.run.graph_run import run_graph
+from splitter_bringup.run.inprocess import record_graph
+from splitter_bringup.run.replay import replay_mpc
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
 
@@ -119,7 +119,7 @@ def test_every_message_reads_back_exactly_with_mcap_and_rosbags(recorded_graph) 
 def test_replaying_the_bag_into_the_mpc_reproduces_its_setpoints(recorded_graph) -> None:
     bag_dir, _ = recorded_graph
     scenario = load_scenario("spin_stabilization")
-    from splitter_bringup.core.graph_config import mpc_parameters
+    from splitter_bringup.scenario.graph_config import mpc_parameters
 
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=TEST_DOMAIN_ID + 12)  # <= MAX_DOMAIN_OFFSET

@@ -6,8 +6,8 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 
-from splitter_bringup.core.graph_config import graph_nodes, write_parameter_file
-from splitter_bringup.core.scenario import available_scenarios, load_scenario
+from splitter_bringup.scenario.definition import available_scenarios, load_scenario
+from splitter_bringup.scenario.graph_config import graph_nodes, write_parameter_file
 from splitter_mpc.core.gait import PlannedJump
 from splitter_mpc.gait_phase_manager_node import GaitPhaseManagerNode
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import yaml
 
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_mpc.core.gait import (
     GaitConfig,
     PlannedJump,

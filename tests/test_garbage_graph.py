@@ -12,8 +12,8 @@ import os
 import numpy as np
 import pytest
 
-from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.garbage import garbage_message, run_with_garbage
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.inspection import non_finite_fields
 

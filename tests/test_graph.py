@@ -17,8 +17,8 @@ import pytest
 import rclpy
 
 from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
-from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.inprocess import GraphRecord, clock_reached, start_graph
+from splitter_bringup.run.inprocess import GraphRecord, clock_reached, start_graph
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.gait import momentum_aligned_attitude

@@ -13,10 +13,11 @@ from pathlib import Path
 import pytest
 
 from splitter_bag import read_metadata
-from splitter_bringup.commands.bench_graph import _metric_values, largest_relative_difference
+from splitter_bringup.analysis.summary import metric_values
+from splitter_bringup.cli.bench_graph import largest_relative_difference
 from splitter_bringup.core.closed_loop import run_closed_loop
-from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.graph_run import WallTiming, run_graph
+from splitter_bringup.run.graph_run import WallTiming, run_graph
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.environment import ros_environment
 
@@ -50,7 +51,7 @@ def test_in_process_run_records_the_whole_flight_with_the_library_result(
     assert counts[names.JOINT_COMMANDS] == steps // 2 + 1  # every 10 ms control tick
     assert 0.0 < timing[0].flight_wall_time_s and timing[0].startup_s > 0.0
     worst, metric = largest_relative_difference(
-        _metric_values(graph, scenario), _metric_values(run_closed_loop(scenario), scenario)
+        metric_values(graph, scenario), metric_values(run_closed_loop(scenario), scenario)
     )
     assert worst < 0.01, f"{metric} differs by {100 * worst:.3g} % from the library loop"
 

@@ -27,7 +27,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
 from splitter_bag.core.reader import read_messages
-from splitter_bringup.core.scenario import scenario_dir
+from splitter_bringup.scenario.definition import scenario_dir
 from splitter_msgs_py import names
 
 SPLITTER = Path(sys.executable).with_name("splitter")

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from splitter_bringup.core.graph_config import graph_nodes
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.graph_config import graph_nodes
 from splitter_msgs_py.environment import ros_environment
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -53,7 +53,7 @@ def test_the_check_finds_an_upward_import(tmp_path, monkeypatch) -> None:
     fake = tmp_path / "splitter_ws" / "src"
     (fake / "splitter_sim" / "test").mkdir(parents=True)
     (fake / "splitter_sim" / "test" / "test_x.py").write_text(
-        "def f():\n    from splitter_bringup.core import scenario\n"
+        "def f():\n    from splitter_bringup.scenario import definition as scenario\n"
     )
     (fake / "splitter_model").mkdir()
     (fake / "splitter_model" / "m.py").write_text("import splitter_model.model\n")

@@ -36,11 +36,11 @@ from rclpy.serialization import serialize_message
 
 from splitter_bag import BagWriter, QosProfile
 from splitter_bag.player_node import PlayerNode
-from splitter_bringup.core.graph_config import graph_nodes
-from splitter_bringup.core.scenario import load_scenario
 from splitter_bringup.foxglove_bridge_node import FoxgloveBridgeNode
-from splitter_bringup.graph_watchdog_node import GraphWatchdogNode
-from splitter_bringup.inprocess import create_node
+from splitter_bringup.nodes.graph_watchdog_node import GraphWatchdogNode
+from splitter_bringup.run.inprocess import create_node
+from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.graph_config import graph_nodes
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py.parameters import parameter_diagnostics

@@ -23,10 +23,10 @@ import rclpy
 from splitter_bag import BagWriter, read_messages, read_metadata
 from splitter_bag.core.definitions import header_stamp_ns
 from splitter_bag.core.reader import read_attachments
-from splitter_bringup.core.graph_config import graph_nodes, with_parameter_attachments
-from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.inprocess import record_graph
-from splitter_bringup.replay import ReplayError, replay_mpc
+from splitter_bringup.run.inprocess import record_graph
+from splitter_bringup.run.replay import ReplayError, replay_mpc
+from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.graph_config import graph_nodes, with_parameter_attachments
 from splitter_msgs_py import names
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py

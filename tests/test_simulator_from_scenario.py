@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from splitter_bringup.core.closed_loop import simulator_for
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
 
 
 def test_a_scenario_sets_up_the_simulator_with_integer_time() -> None:
@@ -30,7 +30,7 @@ def test_a_scenario_sets_up_the_simulator_with_integer_time() -> None:
 def test_the_node_parameters_of_a_scenario_build_the_library_simulator() -> None:
     """The graph's simulator (its parameters through SimConfig and SimulatorSettings, the
     fields the node declares) starts where the library loop's does, with the same config."""
-    from splitter_bringup.core.graph_config import simulator_parameters
+    from splitter_bringup.scenario.graph_config import simulator_parameters
     from splitter_model.model import gravity_from_name
     from splitter_msgs_py.parameters import config_from_values
     from splitter_sim.core.settings import SimulatorSettings

@@ -7,8 +7,8 @@ import os
 import pytest
 import rclpy
 
-from splitter_bringup.core.scenario import load_scenario
-from splitter_bringup.inprocess import start_graph
+from splitter_bringup.run.inprocess import start_graph
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_bringup.transport_floor import (
     RECORDED_TOPICS,
     STATE_TOPICS,

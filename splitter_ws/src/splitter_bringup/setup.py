@@ -24,7 +24,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "splitter = splitter_bringup.cli:main",
+            "splitter = splitter_bringup.cli.main:main",
         ],
     },
 )

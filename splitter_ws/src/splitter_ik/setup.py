@@ -19,7 +19,7 @@ setup(
     zip_safe=True,
     maintainer="SPLITTER developers",
     maintainer_email="splitter-dev@example.com",
-    description="SPLITTER IK / tether allocator and actuator sizing.",
+    description="SPLITTER IK / tether allocator.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -4,7 +4,7 @@
     ros2 launch splitter_bringup splitter.launch.py scenario:=lunar_jumping record:=true
 
 The parameters of every node come from the scenario through the same
-``splitter_bringup.core.graph_config`` the ``splitter`` launcher uses, so both
+``splitter_bringup.scenario.graph_config`` the ``splitter`` launcher uses, so both
 start identical graphs. (Not runnable where launch/launch_ros are not installed,
 as on the project's CI machines: there ``splitter launch`` does the same job.)
 """
@@ -18,8 +18,8 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironment
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from splitter_bringup.core.graph_config import graph_nodes
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.graph_config import graph_nodes
 from splitter_msgs_py.environment import loopback_profile_path
 
 # node name -> (package, executable) of the console scripts in setup.py

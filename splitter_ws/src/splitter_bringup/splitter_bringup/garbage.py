@@ -32,8 +32,8 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 
-from splitter_bringup.core.scenario import Scenario
-from splitter_bringup.launcher import LaunchResult, launch
+from splitter_bringup.run.launcher import LaunchResult, launch
+from splitter_bringup.scenario.definition import Scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg
 from splitter_msgs_py.environment import apply_ros_environment

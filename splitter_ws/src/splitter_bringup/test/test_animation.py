@@ -21,8 +21,8 @@ import pytest
 from rclpy.serialization import serialize_message
 
 from splitter_bag import BagWriter
-from splitter_bringup.core import bag_series
-from splitter_bringup.core.flight_frames import caption, frame_times, sample_indices
+from splitter_bringup.analysis import bag_series
+from splitter_bringup.analysis.flight_frames import caption, frame_times, sample_indices
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
@@ -123,7 +123,7 @@ def test_animate_frames_and_duration_match_the_bag(
     import imageio.v3 as iio
     import imageio_ffmpeg
 
-    from splitter_bringup.commands import animate
+    from splitter_bringup.cli import animate
 
     out = tmp_path / f"flight{suffix}"
     parser = argparse.ArgumentParser()
@@ -160,7 +160,7 @@ def test_animate_frames_and_duration_match_the_bag(
 
 
 def test_animate_rejects_other_formats(flight_bag: Path, tmp_path: Path) -> None:
-    from splitter_bringup.commands import animate
+    from splitter_bringup.cli import animate
 
     parser = argparse.ArgumentParser()
     animate.add_arguments(parser)

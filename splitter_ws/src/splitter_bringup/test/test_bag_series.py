@@ -11,8 +11,8 @@ import pytest
 from rclpy.serialization import serialize_message
 
 from splitter_bag import BagWriter, WriterOptions
-from splitter_bringup.core import bag_series
-from splitter_bringup.run_bag import read_run_series
+from splitter_bringup.analysis import bag_series
+from splitter_bringup.run.run_bag import read_run_series
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
 from splitter_msgs_py import conversions as cv
@@ -123,7 +123,7 @@ def test_missing_state_topic_is_named(tmp_path: Path) -> None:
 
 
 def test_plot_command_writes_the_figures(run_bag: Path, tmp_path: Path, capsys) -> None:
-    from splitter_bringup.commands import plot
+    from splitter_bringup.cli import plot
 
     parser = argparse.ArgumentParser()
     plot.add_arguments(parser)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from splitter_bringup.commands.bench_graph import METRIC_FLOOR, largest_relative_difference
+from splitter_bringup.cli.bench_graph import METRIC_FLOOR, largest_relative_difference
 
 
 def test_largest_relative_difference_names_the_metric() -> None:
@@ -23,7 +23,7 @@ def test_round_off_zeros_are_compared_absolutely() -> None:
 
 
 def test_the_time_plot_splits_each_flight_and_refuses_a_run_without_its_floor(tmp_path) -> None:
-    from splitter_bringup.core.plots import plot_graph_time
+    from splitter_bringup.figures.plots import plot_graph_time
 
     run = {
         "scenario": "lunar_jumping",

@@ -9,8 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from splitter_bringup.cli import main as splitter
-from splitter_bringup.core.campaign import (
+from splitter_bringup.analysis.campaign import (
     FAILURE_MODES,
     OUTCOMES,
     Draw,
@@ -26,7 +25,8 @@ from splitter_bringup.core.campaign import (
     summarize,
     wilson_interval,
 )
-from splitter_bringup.core.series import RunSeries
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.cli.main import main as splitter
 
 T = np.arange(0.0, 4.0 + 1e-9, 0.005)  # [s] a 4 s flight sampled every 5 ms
 
@@ -255,14 +255,14 @@ def test_the_closed_loop_flies_the_perturbed_plant_sensor_and_actuators() -> Non
     from dataclasses import replace
 
     from splitter_bringup.core.closed_loop import Perturbation, run_closed_loop
-    from splitter_bringup.core.scenario import load_scenario
+    from splitter_bringup.scenario.definition import load_scenario
 
     scenario = replace(load_scenario("spin_stabilization", "mpc"), duration_s=0.3)
     nominal = run_closed_loop(scenario)
     same = run_closed_loop(scenario, perturbation=Perturbation())
     assert np.array_equal(nominal.angular_velocity_rad_s, same.angular_velocity_rad_s)
     draw = make_draw(0, 7, perturbation=PerturbationSpec(mass_fraction=0.1))
-    from splitter_bringup.core.campaign import plant_model
+    from splitter_bringup.analysis.campaign import plant_model
 
     heavy = Perturbation(plant_model=plant_model(draw))
     flown = run_closed_loop(scenario, perturbation=heavy)

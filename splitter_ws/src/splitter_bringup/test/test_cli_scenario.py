@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup import cli
-from splitter_bringup.core.scenario import ScenarioError, available_scenarios, load_scenario
+from splitter_bringup.cli import main as cli
+from splitter_bringup.scenario.definition import ScenarioError, available_scenarios, load_scenario
 
 
 def test_help_lists_installed_subcommands(capsys: pytest.CaptureFixture[str]) -> None:
@@ -103,7 +103,7 @@ def test_findings_are_comparisons_between_variants(tmp_path) -> None:
 
 
 def test_build_mpc_builds_each_formulation_the_scenarios_fly_once() -> None:
-    from splitter_bringup.commands.build_mpc import formulations
+    from splitter_bringup.cli.build_mpc import formulations
 
     found = {
         key: f"{scenario.name}/{scenario.variant}"

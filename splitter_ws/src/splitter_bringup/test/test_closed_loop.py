@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from splitter_bringup.analysis.metrics import attitude_reference_series, flight_summary
 from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
-from splitter_bringup.core.metrics import attitude_reference_series, flight_summary
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.gait import rotation_matrix

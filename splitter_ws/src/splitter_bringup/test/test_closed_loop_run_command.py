@@ -7,9 +7,9 @@ import json
 import numpy as np
 import yaml
 
-from splitter_bringup.cli import main as splitter
-from splitter_bringup.core.scenario import scenario_dir
-from splitter_bringup.core.series import RunSeries
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.cli.main import main as splitter
+from splitter_bringup.scenario.definition import scenario_dir
 
 
 def short_spin_scenario(tmp_path, duration_s: float = 0.3):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from splitter_bringup.core.foreign_publishers import ForeignPublisherTracker, qualified_name
+from splitter_bringup.analysis.foreign_publishers import ForeignPublisherTracker, qualified_name
 
 
 def test_unknown_nodes_and_second_publishers_of_a_graph_node_are_foreign_once() -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup.core.jump_metrics import jumping_summary, thrust_start_times
-from splitter_bringup.core.scenario import JumpSpec
-from splitter_bringup.core.series import RunSeries
+from splitter_bringup.analysis.jump_metrics import jumping_summary, thrust_start_times
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.scenario.definition import JumpSpec
 
 G_MOON = 9.80665 / 6  # [m/s^2]
 
@@ -99,7 +99,7 @@ def landing_series() -> RunSeries:
 
 
 def test_gait_summary_of_a_scripted_landing() -> None:
-    from splitter_bringup.core.jump_metrics import flight_durations, gait_summary, phase_spans
+    from splitter_bringup.analysis.jump_metrics import flight_durations, gait_summary, phase_spans
 
     series = landing_series()
     spans = phase_spans(series.t_s, series.gait_phase)

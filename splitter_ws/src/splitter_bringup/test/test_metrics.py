@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from splitter_bringup.core.metrics import (
+from splitter_bringup.analysis.metrics import (
     SETTLING_BAND,
     Metric,
     attitude_error_rad,
@@ -17,8 +17,8 @@ from splitter_bringup.core.metrics import (
     step_response,
     w_tracking_rms,
 )
-from splitter_bringup.core.scenario import PaperFinding
-from splitter_bringup.core.series import RunSeries
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.scenario.definition import PaperFinding
 from splitter_model.model import STANDARD_GRAVITY
 from splitter_mpc.core.gait import (
     GaitConfig,

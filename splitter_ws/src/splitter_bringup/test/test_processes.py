@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from splitter_bringup.core.processes import ProcessSpec, Supervisor
+from splitter_bringup.run.processes import ProcessSpec, Supervisor
 
 # A child that appends "<name> signal <t>" on SIGINT, works `linger` seconds more (a node
 # flushing its last messages) and appends "<name> exit <t>" just before it exits.

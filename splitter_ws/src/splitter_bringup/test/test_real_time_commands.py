@@ -21,8 +21,8 @@ from splitter_bringup.core.closed_loop import (
     received_quaternion,
     simulator_for,
 )
-from splitter_bringup.core.graph_config import gait_parameters
-from splitter_bringup.core.scenario import load_scenario
+from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.graph_config import gait_parameters
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead
 from splitter_ik.core.projection import project_inertia

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup.core.replay_accounting import (
+from splitter_bringup.analysis.replay_accounting import (
     LIVE_PARAMETERS,
     RECORDED_TIMING,
     REPLAYED_TIMING,

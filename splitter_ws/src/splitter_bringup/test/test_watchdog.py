@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from splitter_bringup.core.watchdog import ALLOCATOR, GAIT, MPC, SIMULATOR, GraphWatchdog
+from splitter_bringup.analysis.watchdog import ALLOCATOR, GAIT, MPC, SIMULATOR, GraphWatchdog
 
 NODES = (SIMULATOR, GAIT, MPC, ALLOCATOR)
 MS = 1_000_000  # [ns]

@@ -20,7 +20,7 @@ The simulator runs its hot path as compiled C when it can
 timed); ``SPLITTER_SIM_COMPILED=0 splitter bench sim --json`` times the pure-Python
 path. To see where a step's time goes (one morphing run, 10 s simulated)::
 
-    python -m cProfile -s tottime -m splitter_bringup.cli bench sim --repeat 1 | head -40
+    python -m cProfile -s tottime -m splitter_bringup.cli.main bench sim --repeat 1 | head -40
 
 or, per line of the step (``pip install line_profiler``, not a project dependency)::
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from splitter_bringup.core.flight_frames import FlightFrames
+from splitter_bringup.analysis.flight_frames import FlightFrames
 from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS
 
 _log = logging.getLogger(__name__)

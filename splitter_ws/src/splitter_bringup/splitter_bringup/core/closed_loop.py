@@ -38,9 +38,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from splitter_bringup.core.graph_config import gait_parameters
-from splitter_bringup.core.scenario import Scenario
-from splitter_bringup.core.series import RunSeries
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.scenario.definition import Scenario
+from splitter_bringup.scenario.graph_config import gait_parameters
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.projection import project_inertia
 from splitter_model.actuators import TETHER_INDEX

@@ -1,0 +1,126 @@
+"""Frames of a flight animation: what to draw at each frame time (ROS-free, no plotting).
+
+A :class:`RunSeries` (from a bag or the library loop) is sampled at ``fps``: frame
+``k`` shows the latest sample at or before ``t_0 + k / fps``, so a run of duration
+``D`` has ``floor(D fps) + 1`` frames and its video lasts ``(floor(D fps) + 1) / fps``.
+Each frame carries the ten mass positions in the world frame (the simulator's
+geometry from the recorded joint positions and odometry pose,
+:mod:`splitter_sim.core.scene`), the scene arrows (body axes, angular momentum,
+contact forces when known) and a caption with time, gait phase and ``|w|``.
+The drawing lives in :mod:`splitter_bringup.core.animation`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_bringup.analysis.series import RunSeries
+from splitter_model.model import RobotModel
+from splitter_sim.core.scene import Arrow, SceneGeometry, scene_arrows
+
+DEFAULT_FPS = 10.0  # [1/s] frames per second of `splitter run`'s animations
+VIEW_MARGIN_M = 0.5  # [m] around the farthest mass from the centre of mass
+_EPS_S = 1e-9  # [s] tolerance on the last frame time
+
+
+@dataclass(frozen=True)
+class FlightFrames:
+    """Everything an animation draws, frame by frame (world frame, metres)."""
+
+    times_s: NDArray[np.float64]  # (n,) frame times [s]
+    sample_index: NDArray[np.int64]  # (n,) series sample shown by each frame
+    masses_m: NDArray[np.float64]  # (n, 10, 3) mass positions [m]
+    com_m: NDArray[np.float64]  # (n, 3) centre of mass [m]
+    arrows: tuple[tuple[Arrow, ...], ...]  # per frame
+    captions: tuple[str, ...]  # per frame
+    fps: float  # [1/s]
+    view_half_width_m: float  # [m] half the side of the cube the camera shows
+    ground: bool  # draw the ground plane z = 0
+
+    def __len__(self) -> int:
+        return len(self.times_s)
+
+    @property
+    def duration_s(self) -> float:
+        """Playing time of the animation [s]: one frame period per frame."""
+        return len(self) / self.fps
+
+
+def frame_times(t_s: ArrayLike, fps: float) -> NDArray[np.float64]:
+    """``t_0 + k / fps`` for every ``k`` up to the last sample time."""
+    t = np.asarray(t_s, dtype=float)
+    if len(t) == 0:
+        raise ValueError("no samples to animate")
+    if not (math.isfinite(fps) and fps > 0.0):
+        raise ValueError(f"fps must be > 0, got {fps}")
+    n = math.floor((t[-1] - t[0]) * fps + _EPS_S) + 1
+    return t[0] + np.arange(n) / fps
+
+
+def sample_indices(t_s: ArrayLike, times_s: ArrayLike) -> NDArray[np.int64]:
+    """Index of the latest sample at or before each time (the first one before it)."""
+    t = np.asarray(t_s, dtype=float)
+    idx = np.searchsorted(t, np.asarray(times_s, dtype=float) + _EPS_S, side="right") - 1
+    return np.clip(idx, 0, len(t) - 1).astype(np.int64)
+
+
+def caption(t_s: float, phase: str, w_norm_rad_s: float) -> str:
+    """``t = 1.20 s   IN_FLIGHT   |w| = 1.234 rad/s``."""
+    text = f"t = {t_s:5.2f} s"
+    if phase:
+        text += f"   {phase}"
+    return f"{text}   |w| = {w_norm_rad_s:.3f} rad/s"
+
+
+def flight_frames(
+    series: RunSeries,
+    fps: float = DEFAULT_FPS,
+    contact_forces_n: ArrayLike | None = None,
+    model: RobotModel | None = None,
+) -> FlightFrames:
+    """Frames of ``series`` at ``fps``; ``contact_forces_n`` (n_samples, 2, 3) is optional."""
+    times = frame_times(series.t_s, fps)
+    idx = sample_indices(series.t_s, times)
+    geometry = SceneGeometry(model)
+    forces = None if contact_forces_n is None else np.asarray(contact_forces_n, dtype=float)
+    if forces is not None and forces.shape != (len(series), 2, 3):
+        raise ValueError(f"contact forces must be ({len(series)}, 2, 3), got {forces.shape}")
+    masses = np.empty((len(times), 10, 3))
+    arrows = []
+    captions = []
+    for k, i in enumerate(idx):
+        p = series.position_m[i]
+        q = series.orientation_wxyz[i]
+        w = series.angular_velocity_rad_s[i]
+        masses[k] = geometry.world_positions(p, q, series.joint_position[i])
+        arrows.append(
+            tuple(
+                scene_arrows(
+                    p,
+                    q,
+                    series.principal_inertia_kg_m2[i],
+                    w,
+                    mass_positions_world=masses[k] if forces is not None else None,
+                    contact_forces_n=forces[i] if forces is not None else None,
+                )
+            )
+        )
+        phase = series.gait_phase[i] if series.gait_phase else ""
+        captions.append(caption(float(series.t_s[i]), phase, float(np.linalg.norm(w))))
+    com = series.position_m[idx].astype(float)
+    reach = float(np.max(np.linalg.norm(masses - com[:, None, :], axis=2))) if len(idx) else 1.0
+    return FlightFrames(
+        times_s=times,
+        sample_index=idx,
+        masses_m=masses,
+        com_m=com,
+        arrows=tuple(arrows),
+        captions=tuple(captions),
+        fps=float(fps),
+        view_half_width_m=reach + VIEW_MARGIN_M,
+        ground=series.gravity_m_s2 > 0.0,
+    )

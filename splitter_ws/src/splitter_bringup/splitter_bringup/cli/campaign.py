@@ -1,0 +1,497 @@
+"""``splitter campaign SCENARIO --draws N --seed S``: a Monte-Carlo campaign on Dask.
+
+Flies ``N`` random tumbles of a scenario (random ``|w0|`` in ``[--w-min, --w-max]``,
+random direction and attitude; optional perturbations) with the library closed loop
+and reports the success rate, its 95 % Wilson interval, the failure modes and the
+settling times. The draws, the success test and the failure modes are defined in
+:mod:`splitter_bringup.analysis.campaign`.
+
+Parallel on Dask distributed: an embedded ``LocalCluster`` on 127.0.0.1 (one
+process per worker, one thread each, ``--workers`` of them, all cores by default,
+no dashboard), or an existing cluster with ``--scheduler ADDRESS``. Each draw runs
+in one task with its own MPC and solver worker process (``subprocess``, which a
+daemonic Dask worker may start). Every worker gets the project's environment
+(:class:`ProjectEnvironment`).
+
+Writes to ``--out``:
+
+* ``draws.csv``: one row per draw (seed, ``w0``, attitude, outcome, settling time,
+  failure mode, final rate, MPC failures, wall time, perturbations);
+* ``campaign.json``: the figures, the definitions, and per draw its seed and the
+  command that replays it alone;
+* ``success_vs_speed.png`` and ``outcome_directions.png`` (:mod:`.campaign_plots`);
+* ``draws/draw_NNNN.yaml`` for every failed draw of an unperturbed campaign
+  (``--yaml all`` for all draws): a scenario file, so that
+  ``splitter run draws/draw_NNNN.yaml --no-ros --out DIR`` flies it again with every
+  figure of ``splitter run`` (the same flight as in the campaign).
+
+Replay: ``--replay SEED`` flies the single draw of that seed (a ``seed`` of
+``draws.csv``) in this process with the same flags, and also writes its flight
+figures and series (``replay_flight.png``, ``replay.npz``). ``campaign.json`` gives
+the exact command for every draw; it is the way to replay a perturbed draw.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import logging
+import math
+import os
+import shlex
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from splitter_bringup.analysis.campaign import (
+    ALIGNMENT_MIN,
+    CSV_COLUMNS,
+    DIVERGENCE_FACTOR,
+    DOMINANT_FRACTION,
+    RESIDUAL_TOLERANCE_RAD_S,
+    TAIL_WINDOW_S,
+    W_MAX_RAD_S,
+    W_MIN_RAD_S,
+    Draw,
+    DrawResult,
+    PerturbationSpec,
+    csv_row,
+    draw_campaign,
+    draw_result,
+    error_result,
+    make_draw,
+    scenario_document,
+    scenario_for_draw,
+    summarize,
+)
+from splitter_bringup.run.campaign import fly_draw, run_draw
+from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
+
+_LOG = logging.getLogger("splitter.campaign")
+PROGRESS_STEP = 0.05  # a progress line per 5 % of the draws
+# environment variables a worker takes from the process that starts the campaign
+FORWARDED_ENV_PREFIXES = ("SPLITTER_",)
+FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
+# the value a perturbation flag given without one takes
+DEFAULT_MASS_FRACTION = 0.1  # [-] +-10 %
+DEFAULT_GYRO_NOISE_RAD_S = 0.002  # [rad/s] per reading (100 Hz): a MEMS rate gyro
+DEFAULT_GYRO_BIAS_RAD_S = 0.005  # [rad/s] per axis, an uncalibrated MEMS turn-on bias
+DEFAULT_ACTUATOR_LAG_S = 0.05  # [s]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``splitter campaign``."""
+    parser.add_argument("scenario", help="scenario name or YAML path")
+    parser.add_argument("--draws", type=int, default=100, help="number of draws (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="campaign seed (default 0)")
+    parser.add_argument(
+        "--duration", type=float, default=None, help="flight time of each draw [s] (scenario's)"
+    )
+    parser.add_argument(
+        "--w-min", type=float, default=W_MIN_RAD_S, help=f"lowest |w0| [rad/s] ({W_MIN_RAD_S})"
+    )
+    parser.add_argument(
+        "--w-max", type=float, default=W_MAX_RAD_S, help=f"highest |w0| [rad/s] ({W_MAX_RAD_S})"
+    )
+    parser.add_argument(
+        "--variant", default=None, help="scenario variant (default: mpc, else the first)"
+    )
+    parser.add_argument(
+        "--workers", type=int, default=None, help="local Dask workers (default: all cores)"
+    )
+    parser.add_argument(
+        "--scheduler", default=None, help="address of a running Dask scheduler to use instead"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=None, help="output folder (runs/campaign/SCENARIO_seedS)"
+    )
+    perturb = parser.add_argument_group("perturbations (drawn per draw; off by default)")
+    perturb.add_argument(
+        "--perturb-mass",
+        type=float,
+        nargs="?",
+        const=DEFAULT_MASS_FRACTION,
+        default=0.0,
+        metavar="FRACTION",
+        help="scale the simulated m_x, m_y, m_z (so the inertia) each within 1 +- FRACTION; "
+        f"the MPC and the allocator keep the nominal model (flag alone: {DEFAULT_MASS_FRACTION})",
+    )
+    perturb.add_argument(
+        "--imu-noise",
+        type=float,
+        nargs="?",
+        const=DEFAULT_GYRO_NOISE_RAD_S,
+        default=0.0,
+        metavar="SIGMA",
+        help="white noise on the gyro rate the MPC and allocator read, std per axis and "
+        f"reading [rad/s] (flag alone: {DEFAULT_GYRO_NOISE_RAD_S})",
+    )
+    perturb.add_argument(
+        "--imu-bias",
+        type=float,
+        nargs="?",
+        const=DEFAULT_GYRO_BIAS_RAD_S,
+        default=0.0,
+        metavar="BIAS",
+        help="constant gyro bias, uniform in +-BIAS per axis [rad/s] "
+        f"(flag alone: {DEFAULT_GYRO_BIAS_RAD_S})",
+    )
+    perturb.add_argument(
+        "--actuator-lag",
+        type=float,
+        nargs="?",
+        const=DEFAULT_ACTUATOR_LAG_S,
+        default=0.0,
+        metavar="TAU",
+        help="first-order lag of every joint and tether command, time constant [s] "
+        f"(flag alone: {DEFAULT_ACTUATOR_LAG_S})",
+    )
+    parser.add_argument(
+        "--replay",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help="fly only the draw of this seed (draws.csv), here, and plot its flight",
+    )
+    parser.add_argument(
+        "--yaml",
+        choices=("failed", "all", "none"),
+        default="failed",
+        help="draws to write as scenario files for 'splitter run' (unperturbed campaigns)",
+    )
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+
+
+def _spec(args: argparse.Namespace) -> PerturbationSpec:
+    return PerturbationSpec(
+        mass_fraction=args.perturb_mass,
+        gyro_noise_rad_s=args.imu_noise,
+        gyro_bias_rad_s=args.imu_bias,
+        actuator_lag_s=args.actuator_lag,
+    )
+
+
+def _variant(scenario: str, wanted: str | None) -> str:
+    base = load_scenario(scenario)
+    if wanted is not None:
+        if wanted not in base.variants:
+            raise ScenarioError(f"variant {wanted!r} not in {list(base.variants)}")
+        return wanted
+    return "mpc" if "mpc" in base.variants else base.variants[0]
+
+
+def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int) -> str:
+    """The command that flies the draw of ``seed`` alone, with the campaign's settings."""
+    words = ["splitter", "campaign", str(args.scenario), "--variant", variant]
+    words += ["--replay", str(seed)]
+    if args.duration is not None:
+        words += ["--duration", repr(args.duration)]
+    words += ["--w-min", repr(args.w_min), "--w-max", repr(args.w_max)]
+    for flag, value in (
+        ("--perturb-mass", args.perturb_mass),
+        ("--imu-noise", args.imu_noise),
+        ("--imu-bias", args.imu_bias),
+        ("--actuator-lag", args.actuator_lag),
+    ):
+        if value > 0.0:
+            words += [flag, repr(value)]
+    words += ["--out", str(out)]
+    return shlex.join(words)
+
+
+def campaign_command(argv: Sequence[str] | None = None) -> str:
+    """The command line this process was started with (for campaign.json)."""
+    return shlex.join(["splitter", *(sys.argv[1:] if argv is None else argv)])
+
+
+# --- Dask ------------------------------------------------------------------------------
+def _forwarded_environment() -> dict[str, str]:
+    return {
+        k: v
+        for k, v in os.environ.items()
+        if k in FORWARDED_ENV or k.startswith(FORWARDED_ENV_PREFIXES)
+    }
+
+
+def _worker_plugin_class():
+    from distributed import WorkerPlugin
+
+    class ProjectEnvironment(WorkerPlugin):
+        """Sets the project's environment in every worker before it runs a draw.
+
+        The process environment of ``splitter`` (``ros_environment``: loopback-only
+        DDS, ``AMENT_PREFIX_PATH`` of the worker's Python) with the caller's
+        ``SPLITTER_*``, ``MPLBACKEND``, ``PYTHONDONTWRITEBYTECODE`` and
+        ``ROS_DOMAIN_ID``. The library backend needs no ROS; the solver worker
+        processes a draw starts inherit this environment.
+        """
+
+        name = "splitter-environment"
+
+        def __init__(self, forwarded: dict[str, str]) -> None:
+            self.forwarded = dict(forwarded)
+
+        def setup(self, worker) -> None:
+            from splitter_msgs_py.environment import ros_environment
+
+            env = ros_environment(base=dict(os.environ))
+            env.update(self.forwarded)
+            os.environ.update(env)
+
+    return ProjectEnvironment
+
+
+class _Progress:
+    """A log line per ``PROGRESS_STEP`` of the draws, with the rate so far and the ETA."""
+
+    def __init__(self, total: int) -> None:
+        self.total = total
+        self.done = 0
+        self.successes = 0
+        self.started = time.monotonic()
+        self._next = PROGRESS_STEP
+
+    def __call__(self, result: DrawResult) -> None:
+        self.done += 1
+        self.successes += int(result.success)
+        fraction = self.done / max(1, self.total)
+        if fraction + 1e-12 < self._next and self.done < self.total:
+            return
+        while self._next <= fraction + 1e-12:
+            self._next += PROGRESS_STEP
+        elapsed = time.monotonic() - self.started
+        eta = elapsed / self.done * (self.total - self.done)
+        _LOG.info(
+            "%d/%d draws (%3.0f %%), %d successes, %.0f s elapsed, ETA %.0f s",
+            self.done,
+            self.total,
+            100.0 * fraction,
+            self.successes,
+            elapsed,
+            eta,
+        )
+
+
+def run_on_dask(
+    jobs: Sequence[tuple[Scenario, Draw]],
+    spec: PerturbationSpec,
+    workers: int | None = None,
+    scheduler: str | None = None,
+) -> tuple[list[DrawResult], dict[str, Any]]:
+    """Every draw as a Dask task; (results in draw order, a description of the cluster)."""
+    from distributed import Client, LocalCluster, as_completed
+
+    progress = _Progress(len(jobs))
+    # the scheduler's and the workers' chatter (INFO) would drown the progress lines
+    logging.getLogger("distributed").setLevel(logging.WARNING)
+    results: dict[int, DrawResult] = {}
+    plugin = _worker_plugin_class()(_forwarded_environment())
+    cluster = None
+    if scheduler is None:
+        n_workers = max(1, workers or os.cpu_count() or 1)
+        cluster = LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            # no dashboard (bokeh is not installed); the scheduler's HTTP routes (health,
+            # metrics) on a free loopback port: ":0" would listen on every interface
+            dashboard_address="127.0.0.1:0",
+        )
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        client.register_plugin(plugin)
+        info = {
+            "scheduler": client.scheduler.address,
+            "embedded_local_cluster": cluster is not None,
+            "workers": len(client.scheduler_info().get("workers", {})),
+        }
+        _LOG.info(
+            "%d draws on %d Dask workers (scheduler %s)",
+            len(jobs),
+            info["workers"],
+            info["scheduler"],
+        )
+        futures, draw_of = [], {}
+        for scenario, draw in jobs:
+            future = client.submit(
+                run_draw, scenario, draw, spec, key=f"draw-{draw.index}-{draw.seed}", pure=False
+            )
+            futures.append(future)
+            draw_of[future.key] = draw
+        for future in as_completed(futures):
+            draw = draw_of[future.key]
+            try:
+                result = future.result()
+            except Exception as exc:  # the task's worker died: the draw is an error
+                result = error_result(draw, f"Dask task failed: {exc!r}")
+            results[draw.index] = result
+            progress(result)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return [results[d.index] for _, d in jobs], info
+
+
+# --- files -----------------------------------------------------------------------------
+def write_csv(results: Sequence[DrawResult], path: Path) -> None:
+    with path.open("w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        for r in results:
+            writer.writerow(csv_row(r))
+
+
+def definitions() -> dict[str, Any]:
+    """The success test and the failure modes, as campaign.json states them."""
+    return {
+        "success": (
+            f"at the last sample |w_x| < {RESIDUAL_TOLERANCE_RAD_S} and |w_z| < "
+            f"{RESIDUAL_TOLERANCE_RAD_S} rad/s and |w_y|/|w| >= {ALIGNMENT_MIN}"
+        ),
+        "settling_time_s": "first sample time after which the success test holds to the end",
+        "failure_modes": {
+            "error": "the run raised (or its worker died)",
+            "diverged": f"non-finite rate, |w| > {DIVERGENCE_FACTOR} |w(0)|, or |w| = 0 at the end",
+            "deadline_miss": "not a success and >= 1 MPC solve abandoned at its deadline",
+            "solver_failure": "not a success, no deadline miss, >= 1 failed MPC solve",
+            "tumbling": (
+                f"no axis carries {DOMINANT_FRACTION} of |w| on average over the last "
+                f"{TAIL_WINDOW_S} s"
+            ),
+            "minor_axis_spin": "x (tether, minor axis) dominates the last second",
+            "wrong_axis": "z dominates the last second",
+            "slow_convergence": "y dominates the last second, residual above tolerance at the end",
+        },
+        "precedence": [
+            "error",
+            "diverged",
+            "success",
+            "deadline_miss",
+            "solver_failure",
+            "tumbling | minor_axis_spin | wrong_axis | slow_convergence",
+        ],
+    }
+
+
+def _print_summary(summary: dict[str, Any], title: str) -> None:
+    lo, hi = summary["success_rate_wilson_95"]
+    rate = summary["success_rate"]
+    print(f"\n{title}")
+    if rate is not None:
+        print(
+            f"  success rate  {summary['successes']}/{summary['draws']} = {rate:.3f} "
+            f"(95 % Wilson {lo:.3f} - {hi:.3f})"
+        )
+    for mode, count in summary["failure_mode_counts"].items():
+        if count:
+            print(f"  {mode:<18}{count}")
+    med, p90 = summary["settling_time_median_s"], summary["settling_time_p90_s"]
+    if med is not None:
+        print(f"  settling time median {med:.2f} s, p90 {p90:.2f} s")
+    print(f"  wall time {summary['wall_time_s']:.1f} s")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Draw, fly on Dask, classify, summarise, plot; 0 when it ran, 2 on bad input."""
+    try:
+        variant = _variant(args.scenario, args.variant)
+        base = load_scenario(args.scenario, variant)
+        spec = _spec(args)
+        if args.draws < 1:
+            raise ValueError(f"--draws must be >= 1, got {args.draws}")
+        if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+            raise ValueError(f"--duration must be > 0, got {args.duration}")
+        if args.replay is None:
+            draws = draw_campaign(args.seed, args.draws, args.w_min, args.w_max, spec)
+        else:
+            draws = [make_draw(0, args.replay, args.w_min, args.w_max, spec)]
+    except (ScenarioError, ValueError) as exc:
+        print(f"splitter campaign: {exc}", file=sys.stderr)
+        return 2
+    name = Path(args.scenario).stem
+    out: Path = args.out or Path("runs") / "campaign" / f"{name}_seed{args.seed}"
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [(scenario_for_draw(base, d, args.duration), d) for d in draws]
+    started = time.monotonic()
+    if args.replay is None:
+        results, cluster = run_on_dask(jobs, spec, args.workers, args.scheduler)
+    else:
+        results, cluster = [_replay(jobs[0], spec, out, args.no_plots)], {"replay": True}
+    wall = time.monotonic() - started
+    write_csv(results, out / "draws.csv")
+    summary = summarize(results).as_dict()
+    summary["wall_time_s"] = wall
+    yaml_dir = out / "draws"
+    per_draw = []
+    for (scenario, draw), result in zip(jobs, results, strict=True):
+        entry: dict[str, Any] = {
+            "index": draw.index,
+            "seed": draw.seed,
+            "outcome": result.outcome,
+            "replay": replay_command(args, variant, out / f"replay_{draw.seed}", draw.seed),
+        }
+        wanted = args.yaml == "all" or (args.yaml == "failed" and not result.success)
+        if wanted and not spec.active and args.replay is None:
+            path = yaml_dir / f"draw_{draw.index:04d}.yaml"
+            path.parent.mkdir(exist_ok=True)
+            doc = scenario_document(base, draw, scenario.duration_s)
+            path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+            entry["scenario_yaml"] = str(path)
+            entry["run_command"] = shlex.join(
+                ["splitter", "run", str(path), "--no-ros", "--out", str(out / f"run_{draw.index}")]
+            )
+        per_draw.append(entry)
+    document = {
+        "scenario": base.name,
+        "variant": variant,
+        "command": campaign_command(),
+        "seed": args.seed,
+        "duration_s": jobs[0][0].duration_s,
+        "w_min_rad_s": args.w_min,
+        "w_max_rad_s": args.w_max,
+        "perturbation": spec.as_dict(),
+        "cluster": cluster,
+        **summary,
+        "definitions": definitions(),
+        "per_draw": per_draw,
+    }
+    (out / "campaign.json").write_text(json.dumps(document, indent=2), encoding="utf-8")
+    if not args.no_plots and args.replay is None:
+        from splitter_bringup.figures.campaign_plots import (
+            plot_direction_map,
+            plot_speed_dependence,
+        )
+
+        title = f"{base.name}/{variant}: {len(results)} draws, {jobs[0][0].duration_s:g} s"
+        plot_speed_dependence(results, out / "success_vs_speed.png", args.w_min, args.w_max, title)
+        plot_direction_map(results, out / "outcome_directions.png", title)
+    _print_summary(document, f"{base.name}/{variant} campaign, seed {args.seed}")
+    print(f"\nwrote {out / 'draws.csv'} and {out / 'campaign.json'}")
+    return 0
+
+
+def _replay(job: tuple[Scenario, Draw], spec: PerturbationSpec, out: Path, no_plots: bool):
+    """Fly one draw here; keep its series and flight figure beside the campaign files."""
+    scenario, draw = job
+    started = time.monotonic()
+    series = fly_draw(scenario, draw, spec)
+    result = draw_result(draw, series, time.monotonic() - started)
+    series.save_npz(out / "replay.npz")
+    if not no_plots:
+        from splitter_bringup.figures.plots import plot_flight
+
+        plot_flight(
+            series,
+            out / "replay_flight.png",
+            f"{scenario.name}/{scenario.variant}: draw seed {draw.seed}, {result.outcome}",
+        )
+    return result

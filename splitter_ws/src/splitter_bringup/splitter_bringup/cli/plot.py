@@ -1,0 +1,62 @@
+"""``splitter plot BAG --out PNGDIR``: the paper's figures from a recorded bag.
+
+The bag is read into a :class:`RunSeries` (:mod:`splitter_bringup.analysis.bag_series`);
+the flight figure (angular velocity, radii, inertia against its setpoint, Euler
+angles) and the quaternion map come from :mod:`splitter_bringup.figures.plots`, the
+same code ``splitter run`` uses. The trajectory and velocity figure (paper
+Fig. 12, lunar jumping) is drawn here, from the series' own arrays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from splitter_bringup.figures.trajectory import plot_trajectory, trajectory_summary
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap)")
+    parser.add_argument("--out", type=Path, required=True, help="directory for the PNG files")
+    parser.add_argument(
+        "--gravity",
+        type=float,
+        default=None,
+        help="gravity [m/s^2] (default: the bag's custom_data, else 0)",
+    )
+    parser.add_argument("--title", default="", help="figure title (default: the bag's name)")
+    parser.add_argument("--npz", action="store_true", help="also save the series as .npz")
+
+
+def main(args: argparse.Namespace) -> int:
+    from splitter_bag.core.metadata import MetadataError
+    from splitter_bringup.analysis.bag_series import BagSeriesError
+    from splitter_bringup.figures.plots import plot_flight, plot_quaternion_map
+    from splitter_bringup.run.run_bag import read_run_series
+
+    try:
+        series = read_run_series(args.bag, gravity_m_s2=args.gravity)
+    except (BagSeriesError, MetadataError, FileNotFoundError) as exc:
+        print(f"splitter plot: {exc}", file=sys.stderr)
+        return 1
+    title = args.title or args.bag.resolve().name
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    written = [
+        plot_flight(series, out / "flight.png", title),
+        plot_quaternion_map(series, out / "quaternion.png", title),
+        plot_trajectory(series, out / "trajectory.png", title),
+    ]
+    if args.npz:
+        series.save_npz(out / "series.npz")
+    w_end = series.angular_velocity_rad_s[-1]
+    summary = {
+        "samples": len(series),
+        "final_angular_velocity_rad_s": [float(x) for x in w_end],
+        **trajectory_summary(series),
+        "figures": [str(p) for p in written],
+    }
+    print(json.dumps(summary, indent=2))
+    return 0

@@ -1,0 +1,263 @@
+"""``splitter run SCENARIO --out DIR``: run a scenario's variants, write summary and plots.
+
+Backends: ``graph`` (default) runs the node graph, one process per node, records
+its bag and reads it back (:func:`splitter_bringup.run.graph_run.run_graph`);
+``library`` (also ``--no-ros``) steps the same core objects in the lockstep
+order in one process (:mod:`splitter_bringup.core.closed_loop`).
+Either way the same metrics and plots are made from a ``RunSeries``.
+
+Writes ``DIR/summary.json`` (the main variant's figures beside the paper's, and
+every variant's), ``DIR/<variant>.npz``, ``DIR/<variant>_*.png`` and the flight in
+3D, ``DIR/<variant>_flight.mp4`` (:mod:`splitter_bringup.cli.animate`;
+``--no-animation`` skips it), and prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.analysis.summary import variant_metrics
+from splitter_bringup.scenario.definition import ScenarioError, available_scenarios, load_scenario
+
+SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``splitter run``."""
+    parser.add_argument(
+        "scenario", help=f"scenario name ({', '.join(available_scenarios())}) or YAML path"
+    )
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument(
+        "--variant", action="append", help="variant to run (repeatable; default: all of them)"
+    )
+    parser.add_argument(
+        "--backend",
+        choices=("graph", "library"),
+        default="graph",
+        help="graph: the node graph, recorded to DIR/<variant>/bag; library: no ROS",
+    )
+    parser.add_argument(
+        "--no-ros", action="store_true", help="same as --backend library (no ROS graph)"
+    )
+    parser.add_argument(
+        "--in-process",
+        action="store_true",
+        help="graph backend: every node in this one process on one executor "
+        "(default: one process per node)",
+    )
+    parser.add_argument(
+        "--solver", choices=SOLVER_CHOICES, default=None, help="MPC solver (library backend)"
+    )
+    parser.add_argument(
+        "--no-compile", action="store_true", help="MPC without compiled code (library backend)"
+    )
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument(
+        "--no-animation", action="store_true", help="skip the 3D animation of each variant"
+    )
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        help="graph backend: ROS domain of the graph (default: ROS_DOMAIN_ID when set, else "
+        "one no other graph on this machine uses; written to DIR/<variant>/domain_id)",
+    )
+
+
+def _progress_printer(label: str):
+    state = {"last": -1}
+
+    def report(fraction: float) -> None:
+        percent = int(100 * fraction)
+        if percent // 10 != state["last"] // 10 or fraction >= 1.0:
+            state["last"] = percent
+            print(f"  {label}: {percent:3d} %", file=sys.stderr, flush=True)
+
+    return report
+
+
+def _run_variant(
+    args: argparse.Namespace, scenario_name: str, variant: str
+) -> tuple[RunSeries, float, float, dict]:
+    """(series, start-up wall time [s], flight wall time [s], graph facts) of one variant.
+
+    Graph facts (graph backend only): the ROS domain it ran on and the publishers on its
+    topics it did not start.
+    """
+    if args.backend == "graph" and not args.no_ros:
+        from splitter_bringup.run.graph_run import WallTiming, run_graph
+        from splitter_bringup.run.launcher import LaunchResult
+
+        timing: list[WallTiming] = []
+        results: list[LaunchResult] = []
+        series = run_graph(
+            scenario_name,
+            variant,
+            args.out,
+            timing=timing,
+            in_process=args.in_process,
+            domain_id=args.domain_id,
+            results=results,
+        )
+        facts = {
+            "domain_id": results[0].domain_id,
+            "foreign_publishers": len(results[0].foreign_publishers),
+        }
+        if results[0].bag_dir is not None:
+            from splitter_bringup.run.run_bag import read_timing_report
+
+            # input latency per node, late commands, the tether: their last reports
+            facts["timing"] = read_timing_report(results[0].bag_dir)
+        return series, timing[0].startup_s, timing[0].flight_wall_time_s, facts
+    from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+    from splitter_model.model import RobotModel
+    from splitter_mpc.core.controller import MorphingController
+    from splitter_mpc.core.mpc import MpcSettings
+    from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
+
+    started = time.monotonic()
+    scenario = load_scenario(scenario_name, variant)
+    mpc = MpcSettings(
+        solver=args.solver or MpcSettings().solver,
+        options=SolverOptions(compile=not args.no_compile, max_time_s=LOCKSTEP_MAX_TIME_S),
+    )
+    model = RobotModel()
+    with MorphingController(model, controller_config(scenario, mpc)) as controller:
+        flying = time.monotonic()
+        series = run_closed_loop(
+            scenario, _progress_printer(variant), model=model, controller=controller
+        )
+        return series, flying - started, time.monotonic() - flying, {}
+
+
+def _animate(series: RunSeries, out: Path, variant: str, title: str) -> None:
+    """``out/<variant>_flight.mp4``, with contact arrows when the graph recorded a bag."""
+    from splitter_bringup.figures.flight_animation import write_animation
+    from splitter_bringup.run.run_bag import contact_forces_from_bag
+
+    bag = out / variant / "bag"
+    contact = contact_forces_from_bag(bag, series.t_s) if (bag / "metadata.yaml").exists() else None
+    started = time.monotonic()
+    info = write_animation(series, out / f"{variant}_flight.mp4", title, contact_forces_n=contact)
+    print(
+        f"  {variant}: animation {info.path.name}, {info.frames} frames "
+        f"({time.monotonic() - started:.1f} s)",
+        file=sys.stderr,
+    )
+
+
+def _jsonable(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run, summarise, plot; 0 on success, 2 on a bad scenario or variant."""
+    from splitter_bringup.analysis.metrics import Metric, evaluate_findings, summary_table
+
+    try:
+        base = load_scenario(args.scenario)
+        variants = list(args.variant or base.variants)
+        for v in variants:
+            if v not in base.variants:
+                raise ScenarioError(f"variant {v!r} not in {list(base.variants)}")
+    except ScenarioError as exc:
+        print(f"splitter run: {exc}", file=sys.stderr)
+        return 2
+    if args.no_ros:
+        args.backend = "library"
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    backend = args.backend
+    print(f"{base.name}: variants {', '.join(variants)} ({backend})", file=sys.stderr)
+    runs: dict[str, RunSeries] = {}
+    summaries: dict[str, dict] = {}
+    all_metrics: dict[str, dict[str, Metric]] = {}
+    for variant in variants:
+        started = time.monotonic()
+        scenario = load_scenario(args.scenario, variant)
+        series, startup_s, flight_wall_s, graph_facts = _run_variant(args, args.scenario, variant)
+        wall = time.monotonic() - started
+        runs[variant] = series
+        series.save_npz(out / f"{variant}.npz")
+        metrics = variant_metrics(series, scenario)
+        all_metrics[variant] = metrics
+        summaries[variant] = {
+            "wall_time_s": wall,
+            "startup_s": startup_s,  # processes, solver load and discovery before the first step
+            "flight_wall_time_s": flight_wall_s,  # the flight itself
+            "flight_real_time_factor": scenario.duration_s / max(flight_wall_s, 1e-9),
+            "controller_enabled": scenario.controller.enabled,
+            **graph_facts,  # graph backend: domain_id, foreign_publishers
+            "metrics": {
+                k: {kk: _jsonable(vv) for kk, vv in m.as_dict().items()} for k, m in metrics.items()
+            },
+        }
+        print(
+            f"  {variant}: done in {wall:.1f} s (start-up {startup_s:.1f} s, flight "
+            f"{flight_wall_s:.1f} s: {scenario.duration_s / max(flight_wall_s, 1e-9):.1f}x "
+            "real time)",
+            file=sys.stderr,
+        )
+        if not args.no_plots:
+            from splitter_bringup.figures.plots import plot_flight, plot_quaternion_map
+
+            plot_flight(series, out / f"{variant}_flight.png", f"{base.name}: {variant}")
+            plot_quaternion_map(
+                series, out / f"{variant}_quaternion.png", f"{base.name}: {variant}"
+            )
+            if scenario.jumps or scenario.gravity_m_s2 > 0.0:
+                from splitter_bringup.figures.trajectory import plot_trajectory
+
+                plot_trajectory(
+                    series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
+                )
+            if scenario.jumps:
+                from splitter_bringup.analysis.actuator_sizing import limb_dynamic_force_limit_n
+                from splitter_bringup.figures.plots import plot_gait
+
+                plot_gait(
+                    series,
+                    out / f"{variant}_gait.png",
+                    f"{base.name}: {variant}, gait phases",
+                    limb_dynamic_force_limit_n(),
+                )
+        if not args.no_animation:
+            _animate(series, out, variant, f"{base.name}: {variant}")
+    findings = evaluate_findings(base.findings, all_metrics)
+    if not args.no_plots and len(runs) > 1:
+        from splitter_bringup.figures.plots import plot_comparison, plot_findings
+
+        plot_comparison(runs, out / "comparison.png", base.name)
+        if any(f.reproduced is not None for f in findings):
+            plot_findings(findings, out / "findings.png", f"{base.name}: the paper's findings")
+    main_variant = variants[0]
+    summary = {
+        "scenario": base.name,
+        "backend": backend,
+        "main_variant": main_variant,
+        "metrics": summaries[main_variant]["metrics"],
+        "variants": summaries,
+        "findings": [f.as_dict() for f in findings],
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    for variant in variants:
+        print(f"\n{base.name} / {variant}")
+        print(f"  {'metric':<26}{'value':>12}  {'unit':<9}paper")
+        for name, value, unit, paper in summary_table(all_metrics[variant]):
+            print(f"  {name:<26}{value:>12}  {unit:<9}{paper}")
+    if findings:
+        print(f"\n{base.name}: the paper's findings")
+        for f in findings:
+            verdict = {True: "reproduced", False: "NOT reproduced", None: "not run"}[f.reproduced]
+            values = ", ".join(f"{v} {x:.4g}" for v, x in f.values.items())
+            print(f"  {verdict:<15} {f.statement}\n  {'':<15} {f.metric}: {values}")
+    print(f"\nwrote {out / 'summary.json'}")
+    return 0

@@ -1,1 +1,0 @@
-"""Subcommands of the ``splitter`` command that belong to the bringup package."""

@@ -1,0 +1,1 @@
+"""Figures of runs, campaigns and actuator sizing (PNG, matplotlib Agg; ROS-free)."""
