@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from splitter_bringup.cli.bench_mpc import run_benchmark
+from splitter_tools.bench_mpc import run_benchmark
 
 pytestmark = pytest.mark.slow
 

@@ -2,7 +2,7 @@
 
 The node processes run as ``splitter launch`` starts them (lockstep); this test's
 process publishes garbage on every topic a node subscribes to for 10 s of wall time
-(:mod:`splitter_bringup.garbage`) and checks everything the nodes publish meanwhile.
+(:mod:`splitter_tools.garbage`) and checks everything the nodes publish meanwhile.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import os
 import numpy as np
 import pytest
 
-from splitter_bringup.garbage import garbage_message, run_with_garbage
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.inspection import non_finite_fields
+from splitter_tools.garbage import garbage_message, run_with_garbage
 
 
 def test_garbage_messages_are_garbage() -> None:

@@ -2,8 +2,8 @@
 
 splitter_model at the bottom, splitter_msgs_py on it, splitter_bag on that;
 splitter_sim, splitter_mpc and splitter_ik beside each other, each importing only
-the layers below; splitter_bringup on top. A package's tests live with it and
-follow its rule; the top-level tests/ may import anything.
+the layers below; splitter_bringup on them, splitter_tools on top. A package's tests
+live with it and follow its rule; the top-level tests/ may import anything.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ LEVEL = {
     "splitter_mpc": 3,
     "splitter_ik": 3,
     "splitter_bringup": 4,
+    "splitter_tools": 5,
 }
 
 

@@ -9,7 +9,8 @@ import rclpy
 
 from splitter_bringup.run.inprocess import start_graph
 from splitter_bringup.scenario.definition import load_scenario
-from splitter_bringup.transport_floor import (
+from splitter_msgs_py import names
+from splitter_tools.transport_floor import (
     RECORDED_TOPICS,
     STATE_TOPICS,
     SUBSCRIPTIONS,
@@ -17,7 +18,6 @@ from splitter_bringup.transport_floor import (
     graph_subscriptions,
     measure_transport_floor,
 )
-from splitter_msgs_py import names
 
 TEST_DOMAIN_ID = int(os.environ["ROS_DOMAIN_ID"])  # set by the root conftest.py
 # Subscriptions every node has whatever it does.

@@ -32,6 +32,7 @@ PACKAGES = (
     "splitter_mpc",
     "splitter_ik",
     "splitter_bringup",
+    "splitter_tools",
 )
 # What a clone holds that `make colcon` reads: the Makefile, the pins and the workspace.
 CLONE_PATHS = ("Makefile", "requirements.txt", "splitter_ws")

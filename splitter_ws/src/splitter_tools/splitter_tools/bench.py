@@ -9,12 +9,12 @@ from splitter_bringup.cli.main import dispatch
 BENCHMARKS = {
     "sim": ("splitter_sim.bench", "real-time factor of the bare simulator"),
     "mpc": (
-        "splitter_bringup.cli.bench_mpc",
+        "splitter_tools.bench_mpc",
         "MPC solve times against a plain Opti+IPOPT baseline",
     ),
-    "bag": ("splitter_bag.bench", "sustained bag write rate without loss"),
+    "bag": ("splitter_tools.bench_bag", "sustained bag write rate without loss"),
     "graph": (
-        "splitter_bringup.cli.bench_graph",
+        "splitter_tools.bench_graph",
         "real-time factor of the lockstep node graph per scenario, against the library",
     ),
 }

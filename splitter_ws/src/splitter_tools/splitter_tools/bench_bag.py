@@ -174,7 +174,7 @@ def bench_graph_stage(rate: float, duration_s: float, bag_dir: Path) -> dict[str
     domain_id = 150 + os.getpid() % 50
     env = ros_environment(domain_id=domain_id)
     code = (
-        "import sys; from splitter_bag.bench import publish_main; "
+        "import sys; from splitter_tools.bench_bag import publish_main; "
         f"publish_main({rate!r}, {duration_s!r}, {domain_id})"
     )
     context = rclpy.Context()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from splitter_bringup.cli.bench_graph import METRIC_FLOOR, largest_relative_difference
+from splitter_tools.bench_graph import METRIC_FLOOR, largest_relative_difference
 
 
 def test_largest_relative_difference_names_the_metric() -> None:

@@ -9,7 +9,7 @@ the goal (5x, issue 18), start-up apart (processes, solver load, discovery), and
 the largest relative difference of the summary metrics between the two backends.
 
 Beside them, what bounds the graph from below in one process: the *transport
-floor* (:mod:`splitter_bringup.transport_floor`: the graph's per-step messages
+floor* (:mod:`splitter_tools.transport_floor`: the graph's per-step messages
 through rclpy with no computation) and the library loop's flight (the same
 physics and control with no messages; the controller built beforehand, as the
 graph builds it before its flight). Their sum is the fastest flight the graph could
@@ -89,9 +89,9 @@ def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") 
     )
     from splitter_bringup.run.graph_run import WallTiming, run_graph
     from splitter_bringup.scenario.definition import load_scenario
-    from splitter_bringup.transport_floor import graph_subscriptions, measure_transport_floor
     from splitter_model.model import RobotModel
     from splitter_mpc.core.controller import MorphingController
+    from splitter_tools.transport_floor import graph_subscriptions, measure_transport_floor
 
     scenario = load_scenario(name, variant)
     timing: list[WallTiming] = []
