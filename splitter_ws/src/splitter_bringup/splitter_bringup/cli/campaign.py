@@ -11,7 +11,7 @@ process per worker, one thread each, ``--workers`` of them, all cores by default
 no dashboard), or an existing cluster with ``--scheduler ADDRESS``. Each draw runs
 in one task with its own MPC and solver worker process (``subprocess``, which a
 daemonic Dask worker may start). Every worker gets the project's environment
-(:class:`ProjectEnvironment`).
+(:func:`splitter_bringup.run.campaign.run_on_dask`).
 
 Writes to ``--out``:
 
@@ -36,9 +36,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import logging
 import math
-import os
 import shlex
 import sys
 import time
@@ -63,20 +61,14 @@ from splitter_bringup.analysis.campaign import (
     csv_row,
     draw_campaign,
     draw_result,
-    error_result,
     make_draw,
     scenario_document,
     scenario_for_draw,
     summarize,
 )
-from splitter_bringup.run.campaign import fly_draw, run_draw
+from splitter_bringup.run.campaign import fly_draw, run_on_dask
 from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
 
-_LOG = logging.getLogger("splitter.campaign")
-PROGRESS_STEP = 0.05  # a progress line per 5 % of the draws
-# environment variables a worker takes from the process that starts the campaign
-FORWARDED_ENV_PREFIXES = ("SPLITTER_",)
-FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
 # the value a perturbation flag given without one takes
 DEFAULT_MASS_FRACTION = 0.1  # [-] +-10 %
 DEFAULT_GYRO_NOISE_RAD_S = 0.002  # [rad/s] per reading (100 Hz): a MEMS rate gyro
@@ -207,138 +199,6 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
 def campaign_command(argv: Sequence[str] | None = None) -> str:
     """The command line this process was started with (for campaign.json)."""
     return shlex.join(["splitter", *(sys.argv[1:] if argv is None else argv)])
-
-
-# --- Dask ------------------------------------------------------------------------------
-def _forwarded_environment() -> dict[str, str]:
-    return {
-        k: v
-        for k, v in os.environ.items()
-        if k in FORWARDED_ENV or k.startswith(FORWARDED_ENV_PREFIXES)
-    }
-
-
-def _worker_plugin_class():
-    from distributed import WorkerPlugin
-
-    class ProjectEnvironment(WorkerPlugin):
-        """Sets the project's environment in every worker before it runs a draw.
-
-        The process environment of ``splitter`` (``ros_environment``: loopback-only
-        DDS, ``AMENT_PREFIX_PATH`` of the worker's Python) with the caller's
-        ``SPLITTER_*``, ``MPLBACKEND``, ``PYTHONDONTWRITEBYTECODE`` and
-        ``ROS_DOMAIN_ID``. The library backend needs no ROS; the solver worker
-        processes a draw starts inherit this environment.
-        """
-
-        name = "splitter-environment"
-
-        def __init__(self, forwarded: dict[str, str]) -> None:
-            self.forwarded = dict(forwarded)
-
-        def setup(self, worker) -> None:
-            from splitter_msgs_py.environment import ros_environment
-
-            env = ros_environment(base=dict(os.environ))
-            env.update(self.forwarded)
-            os.environ.update(env)
-
-    return ProjectEnvironment
-
-
-class _Progress:
-    """A log line per ``PROGRESS_STEP`` of the draws, with the rate so far and the ETA."""
-
-    def __init__(self, total: int) -> None:
-        self.total = total
-        self.done = 0
-        self.successes = 0
-        self.started = time.monotonic()
-        self._next = PROGRESS_STEP
-
-    def __call__(self, result: DrawResult) -> None:
-        self.done += 1
-        self.successes += int(result.success)
-        fraction = self.done / max(1, self.total)
-        if fraction + 1e-12 < self._next and self.done < self.total:
-            return
-        while self._next <= fraction + 1e-12:
-            self._next += PROGRESS_STEP
-        elapsed = time.monotonic() - self.started
-        eta = elapsed / self.done * (self.total - self.done)
-        _LOG.info(
-            "%d/%d draws (%3.0f %%), %d successes, %.0f s elapsed, ETA %.0f s",
-            self.done,
-            self.total,
-            100.0 * fraction,
-            self.successes,
-            elapsed,
-            eta,
-        )
-
-
-def run_on_dask(
-    jobs: Sequence[tuple[Scenario, Draw]],
-    spec: PerturbationSpec,
-    workers: int | None = None,
-    scheduler: str | None = None,
-) -> tuple[list[DrawResult], dict[str, Any]]:
-    """Every draw as a Dask task; (results in draw order, a description of the cluster)."""
-    from distributed import Client, LocalCluster, as_completed
-
-    progress = _Progress(len(jobs))
-    # the scheduler's and the workers' chatter (INFO) would drown the progress lines
-    logging.getLogger("distributed").setLevel(logging.WARNING)
-    results: dict[int, DrawResult] = {}
-    plugin = _worker_plugin_class()(_forwarded_environment())
-    cluster = None
-    if scheduler is None:
-        n_workers = max(1, workers or os.cpu_count() or 1)
-        cluster = LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            # no dashboard (bokeh is not installed); the scheduler's HTTP routes (health,
-            # metrics) on a free loopback port: ":0" would listen on every interface
-            dashboard_address="127.0.0.1:0",
-        )
-        client = Client(cluster)
-    else:
-        client = Client(scheduler)
-    try:
-        client.register_plugin(plugin)
-        info = {
-            "scheduler": client.scheduler.address,
-            "embedded_local_cluster": cluster is not None,
-            "workers": len(client.scheduler_info().get("workers", {})),
-        }
-        _LOG.info(
-            "%d draws on %d Dask workers (scheduler %s)",
-            len(jobs),
-            info["workers"],
-            info["scheduler"],
-        )
-        futures, draw_of = [], {}
-        for scenario, draw in jobs:
-            future = client.submit(
-                run_draw, scenario, draw, spec, key=f"draw-{draw.index}-{draw.seed}", pure=False
-            )
-            futures.append(future)
-            draw_of[future.key] = draw
-        for future in as_completed(futures):
-            draw = draw_of[future.key]
-            try:
-                result = future.result()
-            except Exception as exc:  # the task's worker died: the draw is an error
-                result = error_result(draw, f"Dask task failed: {exc!r}")
-            results[draw.index] = result
-            progress(result)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    return [results[d.index] for _, d in jobs], info
 
 
 # --- files -----------------------------------------------------------------------------

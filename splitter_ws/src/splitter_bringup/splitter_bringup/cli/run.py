@@ -23,7 +23,20 @@ from pathlib import Path
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.analysis.summary import variant_metrics
-from splitter_bringup.scenario.definition import ScenarioError, available_scenarios, load_scenario
+from splitter_bringup.run.backends import (
+    BACKENDS,
+    IN_PROCESS,
+    LIBRARY,
+    PROCESSES,
+    VariantRun,
+    run_variant,
+)
+from splitter_bringup.scenario.definition import (
+    Scenario,
+    ScenarioError,
+    available_scenarios,
+    load_scenario,
+)
 
 SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti")
 
@@ -39,9 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--backend",
-        choices=("graph", "library"),
+        choices=("graph", *BACKENDS),
         default="graph",
-        help="graph: the node graph, recorded to DIR/<variant>/bag; library: no ROS",
+        help="graph: the node graph, recorded to DIR/<variant>/bag (processes, or inprocess "
+        "with --in-process); library: no ROS",
     )
     parser.add_argument(
         "--no-ros", action="store_true", help="same as --backend library (no ROS graph)"
@@ -82,58 +96,28 @@ def _progress_printer(label: str):
     return report
 
 
-def _run_variant(
-    args: argparse.Namespace, scenario_name: str, variant: str
-) -> tuple[RunSeries, float, float, dict]:
-    """(series, start-up wall time [s], flight wall time [s], graph facts) of one variant.
+def _backend(args: argparse.Namespace) -> str:
+    """The run backend the options choose (``graph`` is one of the two graph backends)."""
+    if args.no_ros or args.backend == LIBRARY:
+        return LIBRARY
+    if args.backend == "graph":
+        return IN_PROCESS if args.in_process else PROCESSES
+    return args.backend
 
-    Graph facts (graph backend only): the ROS domain it ran on and the publishers on its
-    topics it did not start.
-    """
-    if args.backend == "graph" and not args.no_ros:
-        from splitter_bringup.run.graph_run import WallTiming, run_graph
-        from splitter_bringup.run.launcher import LaunchResult
 
-        timing: list[WallTiming] = []
-        results: list[LaunchResult] = []
-        series = run_graph(
-            scenario_name,
-            variant,
-            args.out,
-            timing=timing,
-            in_process=args.in_process,
-            domain_id=args.domain_id,
-            results=results,
-        )
-        facts = {
-            "domain_id": results[0].domain_id,
-            "foreign_publishers": len(results[0].foreign_publishers),
-        }
-        if results[0].bag_dir is not None:
-            from splitter_bringup.run.run_bag import read_timing_report
-
-            # input latency per node, late commands, the tether: their last reports
-            facts["timing"] = read_timing_report(results[0].bag_dir)
-        return series, timing[0].startup_s, timing[0].flight_wall_time_s, facts
-    from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
-    from splitter_model.model import RobotModel
-    from splitter_mpc.core.controller import MorphingController
+def _run_variant(args: argparse.Namespace, scenario: Scenario) -> VariantRun:
+    """The variant's run on the chosen backend, with the options that apply to it."""
+    backend = _backend(args)
+    if backend != LIBRARY:
+        return run_variant(scenario, backend, out_dir=args.out, domain_id=args.domain_id)
     from splitter_mpc.core.mpc import MpcSettings
     from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 
-    started = time.monotonic()
-    scenario = load_scenario(scenario_name, variant)
     mpc = MpcSettings(
         solver=args.solver or MpcSettings().solver,
         options=SolverOptions(compile=not args.no_compile, max_time_s=LOCKSTEP_MAX_TIME_S),
     )
-    model = RobotModel()
-    with MorphingController(model, controller_config(scenario, mpc)) as controller:
-        flying = time.monotonic()
-        series = run_closed_loop(
-            scenario, _progress_printer(variant), model=model, controller=controller
-        )
-        return series, flying - started, time.monotonic() - flying, {}
+    return run_variant(scenario, LIBRARY, mpc=mpc, progress=_progress_printer(scenario.variant))
 
 
 def _animate(series: RunSeries, out: Path, variant: str, title: str) -> None:
@@ -183,7 +167,9 @@ def main(args: argparse.Namespace) -> int:
     for variant in variants:
         started = time.monotonic()
         scenario = load_scenario(args.scenario, variant)
-        series, startup_s, flight_wall_s, graph_facts = _run_variant(args, args.scenario, variant)
+        variant_run = _run_variant(args, scenario)
+        series, startup_s = variant_run.series, variant_run.startup_s
+        flight_wall_s, graph_facts = variant_run.flight_wall_time_s, variant_run.facts
         wall = time.monotonic() - started
         runs[variant] = series
         series.save_npz(out / f"{variant}.npz")

@@ -19,7 +19,7 @@ from pathlib import Path
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.launcher import LaunchResult, launch
 from splitter_bringup.run.run_bag import read_run_series, read_wall_timing
-from splitter_bringup.scenario.definition import load_scenario
+from splitter_bringup.scenario.definition import Scenario, load_scenario
 
 LOG = logging.getLogger(__name__)
 
@@ -70,7 +70,32 @@ def run_graph(
     :class:`~splitter_bringup.run.launcher.LaunchResult` (its ROS domain, foreign
     publishers). ``domain_id``: None chooses one as the launcher does.
     """
-    scenario = load_scenario(scenario_name, variant)
+    return run_graph_scenario(
+        load_scenario(scenario_name, variant),
+        out_dir,
+        real_time=real_time,
+        verbose=verbose,
+        timeout_s=timeout_s,
+        timing=timing,
+        in_process=in_process,
+        domain_id=domain_id,
+        results=results,
+    )
+
+
+def run_graph_scenario(
+    scenario: Scenario,
+    out_dir: Path,
+    *,
+    real_time: bool = False,
+    verbose: bool = False,
+    timeout_s: float = 1800.0,
+    timing: list[WallTiming] | None = None,
+    in_process: bool = False,
+    domain_id: int | None = None,
+    results: list[LaunchResult] | None = None,
+) -> RunSeries:
+    """:func:`run_graph` of a loaded scenario (its chosen variant), in ``out_dir/<variant>``."""
     run_dir = out_dir / scenario.variant
     launched_unix_s = time.time()
     on_progress = _progress_printer(f"{scenario.name}/{scenario.variant}", scenario.duration_s)
