@@ -15,6 +15,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.launcher import LaunchResult, launch
@@ -50,37 +51,9 @@ class WallTiming:
     flight_wall_time_s: float  # the simulator's stepping, first step to the last
 
 
-def run_graph(
-    scenario_name: str,
-    variant: str | None,
-    out_dir: Path,
-    *,
-    real_time: bool = False,
-    verbose: bool = False,
-    timeout_s: float = 1800.0,
-    timing: list[WallTiming] | None = None,
-    in_process: bool = False,
-    domain_id: int | None = None,
-    results: list[LaunchResult] | None = None,
-) -> RunSeries:
-    """Launch, record and read back one variant; raises :class:`GraphRunError` on failure.
-
-    ``timing``, when given, receives the run's :class:`WallTiming` (from the
-    simulator's wall-time figures on /diagnostics); ``results`` the launch's
-    :class:`~splitter_bringup.run.launcher.LaunchResult` (its ROS domain, foreign
-    publishers). ``domain_id``: None chooses one as the launcher does.
-    """
-    return run_graph_scenario(
-        load_scenario(scenario_name, variant),
-        out_dir,
-        real_time=real_time,
-        verbose=verbose,
-        timeout_s=timeout_s,
-        timing=timing,
-        in_process=in_process,
-        domain_id=domain_id,
-        results=results,
-    )
+def run_graph(scenario_name: str, variant: str | None, out_dir: Path, **options: Any) -> RunSeries:
+    """:func:`run_graph_scenario` of a scenario given by name (or path) and variant."""
+    return run_graph_scenario(load_scenario(scenario_name, variant), out_dir, **options)
 
 
 def run_graph_scenario(
@@ -95,7 +68,13 @@ def run_graph_scenario(
     domain_id: int | None = None,
     results: list[LaunchResult] | None = None,
 ) -> RunSeries:
-    """:func:`run_graph` of a loaded scenario (its chosen variant), in ``out_dir/<variant>``."""
+    """Launch, record and read back one variant; raises :class:`GraphRunError` on failure.
+
+    The run folder is ``out_dir/<variant>``. ``timing``, when given, receives the run's
+    :class:`WallTiming` (from the simulator's wall-time figures on /diagnostics);
+    ``results`` the launch's :class:`~splitter_bringup.run.launcher.LaunchResult` (its
+    ROS domain, foreign publishers). ``domain_id``: None chooses one as the launcher does.
+    """
     run_dir = out_dir / scenario.variant
     launched_unix_s = time.time()
     on_progress = _progress_printer(f"{scenario.name}/{scenario.variant}", scenario.duration_s)
