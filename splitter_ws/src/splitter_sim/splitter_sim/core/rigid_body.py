@@ -30,10 +30,10 @@ this is the DESIGN.md formula ``dE/dt = w.tau - 1/2 w'(dI/dt)w``. Gyroscopic
 forces do no work (``w . (w x L) = 0``), so the energy balance holds whatever
 the gyroscopic sign: only world-frame angular momentum detects that error.
 
-:func:`state_derivative` and :func:`rk4` are the one description of these equations:
+:func:`state_derivative` and :func:`rk4_step` are the one description of these equations:
 the compiled kernels (:mod:`.kernels`) build their graph by calling them with CasADi
-symbols (only arithmetic, the square root passed in, and the external loads as a
-function: :func:`thrust_and_contact_load` branches, the kernels select).
+symbols (only arithmetic, the square root passed in; :func:`external_load` skips
+the masses off the ground with floats and selects with symbols).
 """
 
 from __future__ import annotations
@@ -44,7 +44,6 @@ from typing import Any
 
 from splitter_model.rotations import quaternion_to_matrix_entries as rotation_matrix
 from splitter_sim.core.contact import ground_contact_force
-from splitter_sim.core.shape import Shape
 
 STATE_SIZE = 14
 P, V, Q, L, WORK = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), 13
@@ -92,10 +91,12 @@ class DynamicsParameters:
         self.thrust: tuple[tuple[int, float, float, float], ...] = ()
 
 
-def angular_velocity(shape: Shape, lx: float, ly: float, lz: float) -> tuple[float, float, float]:
-    """w = I^-1 (L - h), body frame [rad/s]."""
+def angular_velocity(shape: Any, lx: Any, ly: Any, lz: Any) -> tuple[Any, Any, Any]:
+    """w = I^-1 (L - h), body frame [rad/s] (floats or symbols)."""
+    a, b, c, d, e, f = shape.inertia_inv
     hx, hy, hz = shape.h
-    return symmetric_product(shape.inertia_inv, lx - hx, ly - hy, lz - hz)
+    x, y, z = lx - hx, ly - hy, lz - hz
+    return a * x + d * y + e * z, d * x + b * y + f * z, e * x + f * y + c * z
 
 
 def state_derivative(
@@ -114,9 +115,9 @@ def state_derivative(
     The one description of the equations of motion: the compiled kernels call it
     with CasADi symbols, ``shape`` and ``prm`` then being namespaces of the same
     attribute names and ``external`` their selection form of the external loads.
-    ``external(s, w, shape, prm, out)`` returns the loads (:func:`external_load`);
-    None: :func:`thrust_and_contact_load` when ``prm`` has thrust or contact
-    candidates (or ``out`` is given), else none.
+    ``external(s, w, shape, prm, out)`` returns the loads (as :func:`external_load`);
+    None: the loads of ``prm.thrust`` and of the ground contacts of ``prm.contact``
+    (``out`` then also receives the rotation and the contacts (i, fx, fy, fz, height)).
     """
     vx, vy, vz, qw, qx, qy, qz, lx, ly, lz = s[3:13]
     ia, ib, ic, i_d, ie, i_f = shape.inertia_inv
@@ -125,12 +126,27 @@ def state_derivative(
     wx = ia * ex + i_d * ey + ie * ez  # w = I^-1 (L - h)
     wy = i_d * ex + ib * ey + i_f * ez
     wz = ie * ex + i_f * ey + ic * ez
-    if external is None and (prm.thrust or prm.contact or out is not None):
-        external = thrust_and_contact_load
-    if external is None:
-        fx = fy = fz = tx = ty = tz = p_rel = 0.0
-    else:
+    if external is not None:
         fx, fy, fz, tx, ty, tz, p_rel = external(s, (wx, wy, wz), shape, prm, out)
+    elif prm.thrust or prm.contact or out is not None:
+        r = rotation_matrix(qw, qx, qy, qz)
+        if not shape.relative_ready:
+            shape.relative()
+        law = (
+            prm.contact_stiffness,
+            prm.contact_damping,
+            prm.friction_coefficient,
+            prm.friction_damping,
+        )
+        forces = [] if out is not None else None
+        fx, fy, fz, tx, ty, tz, p_rel = external_load(
+            s, (wx, wy, wz), r, shape, prm.thrust, prm.contact, ground_contact_force, law, forces
+        )
+        if out is not None:
+            out["rotation"] = r
+            out["contacts"] = forces
+    else:
+        fx = fy = fz = tx = ty = tz = p_rel = 0.0
     m_inv = 1.0 / prm.total_mass
     b = prm.damping
     ax = (fx - b * vx) * m_inv
@@ -189,64 +205,6 @@ def state_derivative(
     ]
 
 
-def thrust_and_contact_load(
-    s: Sequence[float],
-    w: tuple[float, float, float],
-    shape: Shape,
-    prm: DynamicsParameters,
-    out: dict | None,
-) -> tuple[float, ...]:
-    """:func:`external_load` of ``prm.thrust`` and of the ground contacts of ``prm.contact``.
-
-    Only the candidates below the ground that the ground pushes count. ``out``, when
-    given, receives the rotation and the contact forces (i, fx, fy, fz, height).
-    """
-    r = rotation_matrix(s[6], s[7], s[8], s[9])
-    if not shape.relative_ready:
-        shape.relative()
-    rx, ry, rz = shape.rx, shape.ry, shape.rz
-    dvx, dvy, dvz = shape.vx, shape.vy, shape.vz
-    loads = [
-        (rx[i], ry[i], rz[i], dvx[i], dvy[i], dvz[i], gx, gy, gz) for i, gx, gy, gz in prm.thrust
-    ]
-    forces = []
-    if prm.contact:
-        pz, v = s[2], s[3:6]
-        _, _, _, _, _, _, r20, r21, r22 = r
-        k, c = prm.contact_stiffness, prm.contact_damping
-        mu, ct = prm.friction_coefficient, prm.friction_damping
-        for i in prm.contact:
-            x, y, z = rx[i], ry[i], rz[i]
-            height = pz + r20 * x + r21 * y + r22 * z
-            if height >= 0.0:
-                continue
-            mvx, mvy, mvz = mass_velocity(r, w, v, x, y, z, dvx[i], dvy[i], dvz[i])
-            gx, gy, gz = ground_contact_force(height, mvx, mvy, mvz, k, c, mu, ct)
-            if gz == 0.0:
-                continue
-            loads.append((x, y, z, dvx[i], dvy[i], dvz[i], gx, gy, gz))
-            forces.append((i, gx, gy, gz, height))
-    if out is not None:
-        out["rotation"] = r
-        out["contacts"] = forces
-    return external_load(r, loads)
-
-
-def rk4_step(  # noqa: PLR0917  (hot path)
-    s: list[float],
-    h: float,
-    prm: DynamicsParameters,
-    shape_start: Shape,
-    shape_mid: Shape,
-    shape_end: Shape,
-) -> list[float]:
-    """One classical RK4 step of length ``h``; the shape is known at the three stage times.
-
-    The quaternion is renormalised after the step (unit norm kept exactly).
-    """
-    return rk4(s, h, (shape_start, shape_mid, shape_end), prm, math.sqrt)
-
-
 # --- formulas written once for floats and CasADi symbols (the compiled kernels) ---------
 def symmetric_product(m: Sequence[Any], x: Any, y: Any, z: Any) -> tuple[Any, Any, Any]:
     """``M (x, y, z)`` of a symmetric 3x3 matrix given as (xx, yy, zz, xy, xz, yz)."""
@@ -254,42 +212,61 @@ def symmetric_product(m: Sequence[Any], x: Any, y: Any, z: Any) -> tuple[Any, An
     return a * x + d * y + e * z, d * x + b * y + f * z, e * x + f * y + c * z
 
 
-def mass_velocity(  # noqa: PLR0917  (hot path: positional scalars)
-    r: Sequence[Any],
+def external_load(  # noqa: PLR0917  (hot path: positional)
+    s: Sequence[Any],
     w: Sequence[Any],
-    v: Sequence[Any],
-    x: Any,
-    y: Any,
-    z: Any,
-    dx: Any,
-    dy: Any,
-    dz: Any,
-) -> tuple[Any, Any, Any]:
-    """World velocity ``v + R (w x r + dr)`` of a mass at ``r`` moving at ``dr`` in the body."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-    wx, wy, wz = w
-    ux = wy * z - wz * y + dx
-    uy = wz * x - wx * z + dy
-    uz = wx * y - wy * x + dz
-    return (
-        v[0] + r00 * ux + r01 * uy + r02 * uz,
-        v[1] + r10 * ux + r11 * uy + r12 * uz,
-        v[2] + r20 * ux + r21 * uy + r22 * uz,
-    )
-
-
-def external_load(r: Sequence[Any], loads: Sequence[Sequence[Any]]) -> tuple[Any, ...]:
+    r: Sequence[Any],
+    shape: Any,
+    thrust: Sequence[Sequence[Any]],
+    contact: Sequence[int],
+    law: Callable[..., tuple[Any, Any, Any]],
+    law_args: Sequence[Any],
+    forces: list | None = None,
+    select: Callable[..., tuple[Any, Any, Any]] | None = None,
+) -> tuple[Any, ...]:
     """Force (world), torque about the COM (body) and power on the relative motion.
 
-    ``loads``: per external force (x, y, z, dx, dy, dz, gx, gy, gz): the mass's
-    position and velocity relative to the COM (body) and the force (world) [N].
-    Returns (fx, fy, fz, tx, ty, tz, p_rel), summed in the order of ``loads``.
+    ``thrust``: external forces (i, gx, gy, gz) on mass i, world [N]; then the ground
+    force ``law(height, vx, vy, vz, *law_args)`` (``law_args``: the contact's
+    stiffness, damping, friction coefficient and slope) on each mass of
+    ``contact`` (``shape.rx`` ... ``shape.vz``, rotation ``r``, state ``s``,
+    angular velocity ``w``). With floats (``select`` None) only the masses below
+    the ground that the ground pushes count (and go to ``forces`` as (i, fx, fy,
+    fz, height)); with symbols every mass's force goes through ``select(i, gx, gy,
+    gz)``. Returns (fx, fy, fz, tx, ty, tz, p_rel), summed in that order.
     """
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+    wx, wy, wz = w
+    pz, vx, vy, vz = s[2], s[3], s[4], s[5]
+    k, c, mu, ct = law_args
+    rx, ry, rz, dvx, dvy, dvz = shape.rx, shape.ry, shape.rz, shape.vx, shape.vy, shape.vz
     fx = fy = fz = 0.0  # external non-gravity force, world [N]
     tx = ty = tz = 0.0  # external torque about the COM, body [N m]
     p_rel = 0.0  # power of external forces on the relative motion [W]
-    for x, y, z, dx, dy, dz, gx, gy, gz in loads:
+    n_thrust = len(thrust)
+    for n, term in enumerate((*thrust, *contact) if n_thrust else contact):
+        if n < n_thrust:
+            i, gx, gy, gz = term
+            x, y, z, dx, dy, dz = rx[i], ry[i], rz[i], dvx[i], dvy[i], dvz[i]
+        else:
+            x, y, z, dx, dy, dz = rx[term], ry[term], rz[term], dvx[term], dvy[term], dvz[term]
+            height = pz + r20 * x + r21 * y + r22 * z
+            if select is None and height >= 0.0:
+                continue
+            # velocity of the mass: v + R (w x r + dr)
+            ux = wy * z - wz * y + dx
+            uy = wz * x - wx * z + dy
+            uz = wx * y - wy * x + dz
+            mvx = vx + r00 * ux + r01 * uy + r02 * uz
+            mvy = vy + r10 * ux + r11 * uy + r12 * uz
+            mvz = vz + r20 * ux + r21 * uy + r22 * uz
+            gx, gy, gz = law(height, mvx, mvy, mvz, k, c, mu, ct)
+            if select is not None:
+                gx, gy, gz = select(term, gx, gy, gz)
+            elif gz == 0.0:
+                continue
+            elif forces is not None:
+                forces.append((term, gx, gy, gz, height))
         bx = r00 * gx + r10 * gy + r20 * gz
         by = r01 * gx + r11 * gy + r21 * gz
         bz = r02 * gx + r12 * gy + r22 * gz
@@ -303,20 +280,21 @@ def external_load(r: Sequence[Any], loads: Sequence[Sequence[Any]]) -> tuple[Any
     return fx, fy, fz, tx, ty, tz, p_rel
 
 
-def rk4(  # noqa: PLR0917  (hot path: positional)
+def rk4_step(  # noqa: PLR0917  (hot path: positional)
     s: Sequence[Any],
     h: Any,
-    shapes: Sequence[Any],
     prm: Any,
-    sqrt: Callable[[Any], Any],
+    shape_start: Any,
+    shape_mid: Any,
+    shape_end: Any,
+    sqrt: Callable[[Any], Any] = math.sqrt,
     external: Callable[..., tuple[Any, ...]] | None = None,
 ) -> list[Any]:
-    """Classical RK4 of :func:`state_derivative` over ``h``, the shapes at 0, h/2 and h.
+    """One classical RK4 step of length ``h``; the shape is known at the three stage times.
 
-    ``external`` as for :func:`state_derivative`; the quaternion (entries 6-9) is
-    renormalised after the step with ``sqrt``.
+    The quaternion is renormalised after the step (unit norm kept exactly). ``sqrt``
+    and ``external`` (as for :func:`state_derivative`): the kernels' symbolic forms.
     """
-    shape_start, shape_mid, shape_end = shapes
     f = state_derivative
     half = 0.5 * h
     k1 = f(s, shape_start, prm, None, external)
