@@ -55,9 +55,11 @@ binned by ``|w0|`` (:func:`binned_by_speed`).
 from __future__ import annotations
 
 import copy
+import csv
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -574,3 +576,45 @@ def _csv_number(value: float) -> str:
 
 def _json_number(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
+
+
+# --- campaign files -----------------------------------------------------------------------------
+def write_csv(results: Sequence[DrawResult], path: Path) -> None:
+    """``draws.csv``: one row per draw (:data:`CSV_COLUMNS`)."""
+    with path.open("w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        for r in results:
+            writer.writerow(csv_row(r))
+
+
+def definitions() -> dict[str, Any]:
+    """The success test and the failure modes, as campaign.json states them."""
+    return {
+        "success": (
+            f"at the last sample |w_x| < {RESIDUAL_TOLERANCE_RAD_S} and |w_z| < "
+            f"{RESIDUAL_TOLERANCE_RAD_S} rad/s and |w_y|/|w| >= {ALIGNMENT_MIN}"
+        ),
+        "settling_time_s": "first sample time after which the success test holds to the end",
+        "failure_modes": {
+            "error": "the run raised (or its worker died)",
+            "diverged": f"non-finite rate, |w| > {DIVERGENCE_FACTOR} |w(0)|, or |w| = 0 at the end",
+            "deadline_miss": "not a success and >= 1 MPC solve abandoned at its deadline",
+            "solver_failure": "not a success, no deadline miss, >= 1 failed MPC solve",
+            "tumbling": (
+                f"no axis carries {DOMINANT_FRACTION} of |w| on average over the last "
+                f"{TAIL_WINDOW_S} s"
+            ),
+            "minor_axis_spin": "x (tether, minor axis) dominates the last second",
+            "wrong_axis": "z dominates the last second",
+            "slow_convergence": "y dominates the last second, residual above tolerance at the end",
+        },
+        "precedence": [
+            "error",
+            "diverged",
+            "success",
+            "deadline_miss",
+            "solver_failure",
+            "tumbling | minor_axis_spin | wrong_axis | slow_convergence",
+        ],
+    }

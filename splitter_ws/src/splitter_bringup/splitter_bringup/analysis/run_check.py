@@ -20,10 +20,12 @@ the body angular velocity, e.g. from a ``splitter_bringup.analysis.series.RunSer
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_bringup.analysis.series import RunSeries
 from splitter_ik.core.tether import hemi_mass_kg
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import limb_forward_kinematics
@@ -176,3 +178,14 @@ def check_run(
         out.append(worst("jump_joint_torque", jump_tau, ["pushing leg"],
                          MOTOR_OUTPUT_PEAK_TORQUE_NM, "Nm"))  # fmt: skip
     return out
+
+
+def run_check_arrays(series: RunSeries) -> dict[str, Any]:
+    """What :func:`check_run` reads, from a run's series (time, joints, rate, gait, thrust)."""
+    return {
+        "t_s": series.t_s,
+        "joint_position": series.joint_position,
+        "angular_velocity_rad_s": series.angular_velocity_rad_s,
+        "gait_phase": list(series.gait_phase) or None,
+        "jump_force_n": series.jump_force_n,
+    }

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from splitter_bringup.analysis.actuator_sizing import JumpAssumptions, SizingReport, size_actuators
-from splitter_bringup.analysis.run_check import LimitCheck, check_run
+from splitter_bringup.analysis.run_check import LimitCheck, check_run, run_check_arrays
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 
@@ -90,10 +90,17 @@ def format_sizing(report: SizingReport) -> str:
 # --- run check -------------------------------------------------------------------------
 def _check(args: argparse.Namespace) -> int:
     if args.check_npz is not None:
-        arrays = _arrays_from_npz(args.check_npz)
+        from splitter_bringup.analysis.series import RunSeries
+
+        arrays = run_check_arrays(RunSeries.load_npz(args.check_npz))
         source = str(args.check_npz)
     else:
-        arrays = _arrays_from_bag(args.check_bag)
+        from splitter_bringup.run.run_bag import run_check_arrays_from_bag
+
+        try:
+            arrays = run_check_arrays_from_bag(args.check_bag)
+        except ValueError as exc:
+            raise SystemExit(str(exc)) from exc
         source = str(args.check_bag)
     from splitter_msgs_py import names
 
@@ -144,69 +151,4 @@ def _check_dict(c: LimitCheck) -> dict[str, object]:
         "utilisation": c.utilisation,
         "ok": c.ok,
         "where": c.where,
-    }
-
-
-def _arrays_from_npz(path: Path) -> dict:
-    from splitter_bringup.analysis.series import RunSeries
-
-    series = RunSeries.load_npz(path)
-    return {
-        "t_s": series.t_s,
-        "joint_position": series.joint_position,
-        "angular_velocity_rad_s": series.angular_velocity_rad_s,
-        "gait_phase": list(series.gait_phase) or None,
-        "jump_force_n": series.jump_force_n,
-    }
-
-
-def _arrays_from_bag(bag_dir: Path) -> dict:
-    """Measured joint states, IMU rate, gait phase and jump thrust of a graph bag, by stamp."""
-    from rclpy.serialization import deserialize_message
-
-    from splitter_bag import read_messages
-    from splitter_msgs_py import names
-    from splitter_msgs_py.conversions import (
-        TOPIC_MESSAGE_CLASSES,
-        imu_from_msg,
-        joint_state_from_msg,
-        stamp_from_msg,
-        wrench_from_msg,
-    )
-
-    topics = (names.JOINT_STATES, names.IMU, names.GAIT_PHASE, names.JUMP_COMMAND)
-    joints: dict[int, np.ndarray] = {}
-    rates: dict[int, np.ndarray] = {}
-    thrust: dict[int, np.ndarray] = {}
-    phase_at: dict[int, str] = {}
-    phase = ""
-    for m in read_messages(bag_dir, topics=topics):
-        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[m.topic])
-        if m.topic == names.GAIT_PHASE:
-            phase = msg.data
-        elif m.topic == names.JOINT_STATES:
-            sample = joint_state_from_msg(msg)
-            joints[sample.t_ns] = sample.position
-            phase_at[sample.t_ns] = phase
-        elif m.topic == names.IMU:
-            imu = imu_from_msg(msg)
-            rates[imu.t_ns] = imu.angular_velocity_rad_s
-        else:
-            wrench = wrench_from_msg(msg)
-            thrust[stamp_from_msg(msg.header.stamp)] = wrench.force_n
-    stamps = sorted(t for t in joints if t in rates)
-    if len(stamps) < 3:
-        raise SystemExit(f"{bag_dir}: fewer than 3 stamps with both joint_states and imu")
-    last = np.zeros(3)
-    jump = []
-    for t in stamps:  # the latest jump command stays in force until the next
-        last = thrust.get(t, last)
-        jump.append(last)
-    phases = [phase_at[t] for t in stamps]
-    return {
-        "t_s": np.array(stamps, dtype=float) * 1e-9,
-        "joint_position": np.array([joints[t] for t in stamps]),
-        "angular_velocity_rad_s": np.array([rates[t] for t in stamps]),
-        "gait_phase": phases if any(phases) else None,
-        "jump_force_n": np.array(jump) if thrust else None,
     }

@@ -34,7 +34,6 @@ the exact command for every draw; it is the way to replay a perturbed draw.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 import shlex
@@ -47,24 +46,18 @@ from typing import Any
 import yaml
 
 from splitter_bringup.analysis.campaign import (
-    ALIGNMENT_MIN,
-    CSV_COLUMNS,
-    DIVERGENCE_FACTOR,
-    DOMINANT_FRACTION,
-    RESIDUAL_TOLERANCE_RAD_S,
-    TAIL_WINDOW_S,
     W_MAX_RAD_S,
     W_MIN_RAD_S,
     Draw,
-    DrawResult,
     PerturbationSpec,
-    csv_row,
+    definitions,
     draw_campaign,
     draw_result,
     make_draw,
     scenario_document,
     scenario_for_draw,
     summarize,
+    write_csv,
 )
 from splitter_bringup.run.campaign import fly_draw, run_on_dask
 from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
@@ -199,47 +192,6 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
 def campaign_command(argv: Sequence[str] | None = None) -> str:
     """The command line this process was started with (for campaign.json)."""
     return shlex.join(["splitter", *(sys.argv[1:] if argv is None else argv)])
-
-
-# --- files -----------------------------------------------------------------------------
-def write_csv(results: Sequence[DrawResult], path: Path) -> None:
-    with path.open("w", newline="", encoding="utf-8") as stream:
-        writer = csv.DictWriter(stream, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        for r in results:
-            writer.writerow(csv_row(r))
-
-
-def definitions() -> dict[str, Any]:
-    """The success test and the failure modes, as campaign.json states them."""
-    return {
-        "success": (
-            f"at the last sample |w_x| < {RESIDUAL_TOLERANCE_RAD_S} and |w_z| < "
-            f"{RESIDUAL_TOLERANCE_RAD_S} rad/s and |w_y|/|w| >= {ALIGNMENT_MIN}"
-        ),
-        "settling_time_s": "first sample time after which the success test holds to the end",
-        "failure_modes": {
-            "error": "the run raised (or its worker died)",
-            "diverged": f"non-finite rate, |w| > {DIVERGENCE_FACTOR} |w(0)|, or |w| = 0 at the end",
-            "deadline_miss": "not a success and >= 1 MPC solve abandoned at its deadline",
-            "solver_failure": "not a success, no deadline miss, >= 1 failed MPC solve",
-            "tumbling": (
-                f"no axis carries {DOMINANT_FRACTION} of |w| on average over the last "
-                f"{TAIL_WINDOW_S} s"
-            ),
-            "minor_axis_spin": "x (tether, minor axis) dominates the last second",
-            "wrong_axis": "z dominates the last second",
-            "slow_convergence": "y dominates the last second, residual above tolerance at the end",
-        },
-        "precedence": [
-            "error",
-            "diverged",
-            "success",
-            "deadline_miss",
-            "solver_failure",
-            "tumbling | minor_axis_spin | wrong_axis | slow_convergence",
-        ],
-    }
 
 
 def _print_summary(summary: dict[str, Any], title: str) -> None:

@@ -189,3 +189,54 @@ def contact_forces_from_bag(bag_dir: Path, t_s: NDArray[np.float64]) -> NDArray[
         ],
         axis=1,
     )
+
+
+def run_check_arrays_from_bag(bag_dir: Path) -> dict[str, Any]:
+    """Measured joint states, IMU rate, gait phase and jump thrust of a graph bag, by stamp.
+
+    What :func:`splitter_bringup.analysis.run_check.check_run` reads; ValueError when
+    fewer than 3 stamps carry both joint states and the IMU.
+    """
+    from splitter_msgs_py.conversions import (
+        imu_from_msg,
+        joint_state_from_msg,
+        stamp_from_msg,
+        wrench_from_msg,
+    )
+
+    topics = (names.JOINT_STATES, names.IMU, names.GAIT_PHASE, names.JUMP_COMMAND)
+    joints: dict[int, np.ndarray] = {}
+    rates: dict[int, np.ndarray] = {}
+    thrust: dict[int, np.ndarray] = {}
+    phase_at: dict[int, str] = {}
+    phase = ""
+    for m in read_messages(bag_dir, topics=topics):
+        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[m.topic])
+        if m.topic == names.GAIT_PHASE:
+            phase = msg.data
+        elif m.topic == names.JOINT_STATES:
+            sample = joint_state_from_msg(msg)
+            joints[sample.t_ns] = sample.position
+            phase_at[sample.t_ns] = phase
+        elif m.topic == names.IMU:
+            imu = imu_from_msg(msg)
+            rates[imu.t_ns] = imu.angular_velocity_rad_s
+        else:
+            wrench = wrench_from_msg(msg)
+            thrust[stamp_from_msg(msg.header.stamp)] = wrench.force_n
+    stamps = sorted(t for t in joints if t in rates)
+    if len(stamps) < 3:
+        raise ValueError(f"{bag_dir}: fewer than 3 stamps with both joint_states and imu")
+    last = np.zeros(3)
+    jump = []
+    for t in stamps:  # the latest jump command stays in force until the next
+        last = thrust.get(t, last)
+        jump.append(last)
+    phases = [phase_at[t] for t in stamps]
+    return {
+        "t_s": np.array(stamps, dtype=float) * 1e-9,
+        "joint_position": np.array([joints[t] for t in stamps]),
+        "angular_velocity_rad_s": np.array([rates[t] for t in stamps]),
+        "gait_phase": phases if any(phases) else None,
+        "jump_force_n": np.array(jump) if thrust else None,
+    }
