@@ -20,7 +20,7 @@ setup(
     zip_safe=True,
     maintainer="SPLITTER developers",
     maintainer_email="splitter-dev@example.com",
-    description="SPLITTER scenarios, launcher, runs, benchmarks and CLI.",
+    description="SPLITTER scenarios, run backends, analysis, figures, tool nodes and CLI.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
