@@ -23,7 +23,10 @@ from collections.abc import Mapping, Sequence
 COMMANDS: Mapping[str, tuple[str, str]] = {
     "run": ("splitter_bringup.cli.run", "run a scenario to its end, write summary and plots"),
     "launch": ("splitter_bringup.cli.launch", "start every node as its own process"),
-    "bench": ("splitter_tools.bench", "benchmarks that print figures (sim, mpc, bag)"),
+    "bench": (
+        "splitter_tools.bench",
+        "benchmarks that print figures (sim, mpc, bag, graph; splitter_tools)",
+    ),
     "bag": ("splitter_bag.cli", "bag tools: info, recover, play, record"),
     "plot": ("splitter_bringup.cli.plot", "plot a recorded bag as the paper's figures"),
     "animate": (
