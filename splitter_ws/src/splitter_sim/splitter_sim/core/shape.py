@@ -285,6 +285,7 @@ def about_com_moving(
     """
     px, py, pz, vx, vy, vz, ax, ay, az = geometric
     fmax = ops.fmax
+    compare = fmax is max
     smx = smy = smz = svx = svy = svz = sax = say = saz = 0.0
     sxx = syy = szz = sxy = sxz = syz = 0.0
     txx = tyy = tzz = txy = txz = tyz = 0.0
@@ -326,8 +327,15 @@ def about_com_moving(
         s2 = u * u + v * v + w * w
         ke += m * s2
         ke_dot += m * (u * a + v * b + w * c)
-        radius2 = fmax(radius2, x * x + y * y + z * z)
-        speed2 = fmax(speed2, s2)
+        d2 = x * x + y * y + z * z
+        if compare:  # floats: the comparison inline (a call of max costs ~80 ns)
+            if d2 > radius2:  # noqa: PLR1730
+                radius2 = d2
+            if s2 > speed2:  # noqa: PLR1730
+                speed2 = s2
+        else:
+            radius2 = fmax(radius2, d2)
+            speed2 = fmax(speed2, s2)
     inv_m = 1.0 / total_mass
     cx, cy, cz = smx * inv_m, smy * inv_m, smz * inv_m
     dcx, dcy, dcz = svx * inv_m, svy * inv_m, svz * inv_m
