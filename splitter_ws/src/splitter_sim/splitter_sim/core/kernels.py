@@ -355,6 +355,15 @@ def _sym_external(ca: Any, ws: Any) -> Callable[..., tuple]:
         for slot in range(FORCE_SLOTS)
     ]
     law = partial(_sym_contact_force, ca)
+    k, c, mu, ct = ws[WS_CONTACT]
+    loads = SimpleNamespace(
+        thrust=thrust,
+        contact=range(N_MASSES),
+        contact_stiffness=k,
+        contact_damping=c,
+        friction_coefficient=mu,
+        friction_damping=ct,
+    )
 
     def select(i: int, *force: Any) -> tuple:
         candidate = ws[WS_CANDIDATES.start + i] != 0.0
@@ -362,8 +371,7 @@ def _sym_external(ca: Any, ws: Any) -> Callable[..., tuple]:
 
     def external(s: Sequence, w: Sequence, shape: Any, prm: Any, out: None) -> tuple:
         r = rotation_matrix(s[6], s[7], s[8], s[9])
-        masses = range(N_MASSES)
-        return external_load(s, w, r, shape, thrust, masses, law, ws[WS_CONTACT], None, select)
+        return external_load(s, w, r, shape, loads, law, None, select)
 
     return external
 

@@ -132,15 +132,9 @@ def state_derivative(
         r = rotation_matrix(qw, qx, qy, qz)
         if not shape.relative_ready:
             shape.relative()
-        law = (
-            prm.contact_stiffness,
-            prm.contact_damping,
-            prm.friction_coefficient,
-            prm.friction_damping,
-        )
         forces = [] if out is not None else None
         fx, fy, fz, tx, ty, tz, p_rel = external_load(
-            s, (wx, wy, wz), r, shape, prm.thrust, prm.contact, ground_contact_force, law, forces
+            s, (wx, wy, wz), r, shape, prm, ground_contact_force, forces
         )
         if out is not None:
             out["rotation"] = r
@@ -217,19 +211,17 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
     w: Sequence[Any],
     r: Sequence[Any],
     shape: Any,
-    thrust: Sequence[Sequence[Any]],
-    contact: Sequence[int],
+    prm: Any,
     law: Callable[..., tuple[Any, Any, Any]],
-    law_args: Sequence[Any],
     forces: list | None = None,
     select: Callable[..., tuple[Any, Any, Any]] | None = None,
 ) -> tuple[Any, ...]:
     """Force (world), torque about the COM (body) and power on the relative motion.
 
-    ``thrust``: external forces (i, gx, gy, gz) on mass i, world [N]; then the ground
-    force ``law(height, vx, vy, vz, *law_args)`` (``law_args``: the contact's
+    ``prm.thrust``: external forces (i, gx, gy, gz) on mass i, world [N]; then the
+    ground force ``law(height, vx, vy, vz, k, c, mu, c_t)`` (``prm``'s contact
     stiffness, damping, friction coefficient and slope) on each mass of
-    ``contact`` (``shape.rx`` ... ``shape.vz``, rotation ``r``, state ``s``,
+    ``prm.contact`` (``shape.rx`` ... ``shape.vz``, rotation ``r``, state ``s``,
     angular velocity ``w``). With floats (``select`` None) only the masses below
     the ground that the ground pushes count (and go to ``forces`` as (i, fx, fy,
     fz, height)); with symbols every mass's force goes through ``select(i, gx, gy,
@@ -238,7 +230,9 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
     wx, wy, wz = w
     pz, vx, vy, vz = s[2], s[3], s[4], s[5]
-    k, c, mu, ct = law_args
+    thrust, contact = prm.thrust, prm.contact
+    k, c = prm.contact_stiffness, prm.contact_damping
+    mu, ct = prm.friction_coefficient, prm.friction_damping
     rx, ry, rz, dvx, dvy, dvz = shape.rx, shape.ry, shape.rz, shape.vx, shape.vy, shape.vz
     fx = fy = fz = 0.0  # external non-gravity force, world [N]
     tx = ty = tz = 0.0  # external torque about the COM, body [N m]
@@ -249,10 +243,11 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
             i, gx, gy, gz = term
             x, y, z, dx, dy, dz = rx[i], ry[i], rz[i], dvx[i], dvy[i], dvz[i]
         else:
-            x, y, z, dx, dy, dz = rx[term], ry[term], rz[term], dvx[term], dvy[term], dvz[term]
+            x, y, z = rx[term], ry[term], rz[term]
             height = pz + r20 * x + r21 * y + r22 * z
             if select is None and height >= 0.0:
                 continue
+            dx, dy, dz = dvx[term], dvy[term], dvz[term]
             # velocity of the mass: v + R (w x r + dr)
             ux = wy * z - wz * y + dx
             uy = wz * x - wx * z + dy
