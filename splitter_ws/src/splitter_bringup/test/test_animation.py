@@ -29,10 +29,12 @@ from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 from splitter_sim.core.scene import (
     MOMENTUM_SCALE_M,
+    Ground,
     SceneGeometry,
     contact_arrows,
     rotation_matrix,
     scene_arrows,
+    scene_from_pose,
 )
 
 STEP_NS = 5_000_000  # [ns] 200 Hz
@@ -69,6 +71,34 @@ def test_scene_arrows() -> None:
     contact = contact_arrows(masses, [[0.0, 0.0, 0.0], [5.0, 0.0, 50.0]])
     assert [a.name for a in contact] == ["contact_b"]  # hemi a carries no force
     np.testing.assert_allclose(contact[0].start, masses[5])  # hemi b's lowest mass
+
+
+def test_a_scene_holds_what_the_views_draw() -> None:
+    """The typed scene: its arrows are scene_arrows', its tether and limbs join its masses."""
+    q = np.array([math.cos(0.3), 0.0, 0.0, math.sin(0.3)])
+    inertia, w = np.array([10.0, 100.0, 110.0]), np.array([0.1, 1.0, -0.2])
+    masses = np.arange(30.0).reshape(10, 3)
+    forces = [[0.0, 0.0, 0.0], [5.0, 0.0, 50.0]]
+    scene = scene_from_pose(
+        7,
+        [1.0, 2.0, 3.0],
+        q,
+        mass_positions_world=masses,
+        principal_inertia_kg_m2=inertia,
+        angular_velocity_rad_s=w,
+        contact_forces_n=forces,
+        ground=Ground(),
+    )
+    expected = scene_arrows(
+        [1.0, 2.0, 3.0], q, inertia, w, mass_positions_world=masses, contact_forces_n=forces
+    )
+    assert [a.name for a in scene.arrows] == [a.name for a in expected]
+    for got, want in zip(scene.arrows, expected, strict=True):
+        np.testing.assert_allclose([got.start, got.end], [want.start, want.end])
+    np.testing.assert_array_equal(scene.tether_m, masses[[0, 5]])
+    np.testing.assert_array_equal(scene.limb_segments_m[4], masses[[5, 6]])
+    np.testing.assert_array_equal(scene.contact_points_m, masses[[0, 5]])  # lowest of each hemi
+    assert scene.ground.height_at(3.0, -1.0) == 0.0 and scene.t_ns == 7
 
 
 def test_frame_times_and_samples() -> None:

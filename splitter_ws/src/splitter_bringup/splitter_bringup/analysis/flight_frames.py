@@ -3,10 +3,11 @@
 A :class:`RunSeries` (from a bag or the library loop) is sampled at ``fps``: frame
 ``k`` shows the latest sample at or before ``t_0 + k / fps``, so a run of duration
 ``D`` has ``floor(D fps) + 1`` frames and its video lasts ``(floor(D fps) + 1) / fps``.
-Each frame carries the ten mass positions in the world frame (the simulator's
-geometry from the recorded joint positions and odometry pose,
-:mod:`splitter_sim.core.scene`), the scene arrows (body axes, angular momentum,
-contact forces when known) and a caption with time, gait phase and ``|w|``.
+Each frame carries the scene (:class:`splitter_sim.core.scene.Scene`, built by
+the same :func:`~splitter_sim.core.scene.scene_from_pose` as the simulator's:
+the ten masses from the simulator's geometry at the recorded joint positions and
+odometry pose, the angular momentum, the contact forces when known, the ground
+when there is gravity) and a caption with time, gait phase and ``|w|``.
 The drawing lives in :mod:`splitter_bringup.core.animation`.
 """
 
@@ -20,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_model.model import RobotModel
-from splitter_sim.core.scene import Arrow, SceneGeometry, scene_arrows
+from splitter_sim.core.scene import Ground, Scene, SceneGeometry, scene_from_pose
 
 DEFAULT_FPS = 10.0  # [1/s] frames per second of `splitter run`'s animations
 VIEW_MARGIN_M = 0.5  # [m] around the farthest mass from the centre of mass
@@ -33,13 +34,10 @@ class FlightFrames:
 
     times_s: NDArray[np.float64]  # (n,) frame times [s]
     sample_index: NDArray[np.int64]  # (n,) series sample shown by each frame
-    masses_m: NDArray[np.float64]  # (n, 10, 3) mass positions [m]
-    com_m: NDArray[np.float64]  # (n, 3) centre of mass [m]
-    arrows: tuple[tuple[Arrow, ...], ...]  # per frame
+    scenes: tuple[Scene, ...]  # per frame
     captions: tuple[str, ...]  # per frame
     fps: float  # [1/s]
     view_half_width_m: float  # [m] half the side of the cube the camera shows
-    ground: bool  # draw the ground plane z = 0
 
     def __len__(self) -> int:
         return len(self.times_s)
@@ -89,38 +87,36 @@ def flight_frames(
     forces = None if contact_forces_n is None else np.asarray(contact_forces_n, dtype=float)
     if forces is not None and forces.shape != (len(series), 2, 3):
         raise ValueError(f"contact forces must be ({len(series)}, 2, 3), got {forces.shape}")
-    masses = np.empty((len(times), 10, 3))
-    arrows = []
+    ground = Ground() if series.gravity_m_s2 > 0.0 else None
+    scenes = []
     captions = []
-    for k, i in enumerate(idx):
+    for i in idx:
         p = series.position_m[i]
         q = series.orientation_wxyz[i]
         w = series.angular_velocity_rad_s[i]
-        masses[k] = geometry.world_positions(p, q, series.joint_position[i])
-        arrows.append(
-            tuple(
-                scene_arrows(
-                    p,
-                    q,
-                    series.principal_inertia_kg_m2[i],
-                    w,
-                    mass_positions_world=masses[k] if forces is not None else None,
-                    contact_forces_n=forces[i] if forces is not None else None,
-                )
+        scenes.append(
+            scene_from_pose(
+                round(float(series.t_s[i]) * 1e9),
+                p,
+                q,
+                mass_positions_world=geometry.world_positions(p, q, series.joint_position[i]),
+                principal_inertia_kg_m2=series.principal_inertia_kg_m2[i],
+                angular_velocity_rad_s=w,
+                contact_forces_n=None if forces is None else forces[i],
+                ground=ground,
             )
         )
         phase = series.gait_phase[i] if series.gait_phase else ""
         captions.append(caption(float(series.t_s[i]), phase, float(np.linalg.norm(w))))
-    com = series.position_m[idx].astype(float)
-    reach = float(np.max(np.linalg.norm(masses - com[:, None, :], axis=2))) if len(idx) else 1.0
+    reach = max(
+        (float(np.max(np.linalg.norm(s.mass_positions_m - s.position_m, axis=1))) for s in scenes),
+        default=1.0,
+    )
     return FlightFrames(
         times_s=times,
         sample_index=idx,
-        masses_m=masses,
-        com_m=com,
-        arrows=tuple(arrows),
+        scenes=tuple(scenes),
         captions=tuple(captions),
         fps=float(fps),
         view_half_width_m=reach + VIEW_MARGIN_M,
-        ground=series.gravity_m_s2 > 0.0,
     )

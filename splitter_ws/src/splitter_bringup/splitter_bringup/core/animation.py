@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from splitter_bringup.analysis.flight_frames import FlightFrames
-from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS
+from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS, Scene
 
 _log = logging.getLogger(__name__)
 DEFAULT_SIZE_PX = (480, 360)  # (width, height) [px]; multiples of 8 for H.264
@@ -76,24 +76,28 @@ class _Scene:
         for color in HEMI_COLORS:
             self.bodies.append(self.ax.plot([], [], [], "o", color=color, ms=BODY_SIZE**0.5)[0])
             self.tips.append(self.ax.plot([], [], [], "o", color=color, ms=TIP_SIZE**0.5)[0])
-        names = [a.name for a in frames.arrows[0]] if len(frames) else []
+        names = [a.name for a in frames.scenes[0].arrows] if len(frames) else []
         names += [n for n in ("contact_a", "contact_b") if n not in names]
         self.arrows = {n: self.ax.plot([], [], [], lw=2.0)[0] for n in names}
         self.heads = {n: self.ax.plot([], [], [], "o", ms=3)[0] for n in names}
-        self.ground = None
-        if frames.ground:
-            self.ground = self.ax.plot([], [], [], color="0.6", lw=0.8)[0]
+        self.ground = self.ax.plot([], [], [], color="0.6", lw=0.8)[0]
 
     def draw(self, k: int) -> NDArray[np.uint8]:
-        f = self.frames
-        masses = f.masses_m[k]
-        self.tether.set_data_3d(*masses[[0, 5]].T)
-        for line, (a, b) in zip(self.limbs, LIMB_SEGMENTS, strict=True):
-            line.set_data_3d(*masses[[a, b]].T)
+        self._draw_scene(self.frames.scenes[k], self.frames.view_half_width_m)
+        self.caption.set_text(self.frames.captions[k])
+        self.fig.canvas.draw()
+        return _rgb(np.asarray(self.fig.canvas.buffer_rgba()))
+
+    def _draw_scene(self, scene: Scene, h: float) -> None:
+        """The artists at ``scene``, in a cube of half side ``h`` about its centre of mass."""
+        masses = scene.mass_positions_m
+        self.tether.set_data_3d(*scene.tether_m.T)
+        for line, segment in zip(self.limbs, scene.limb_segments_m, strict=True):
+            line.set_data_3d(*segment.T)
         for hemi, indices in enumerate(HEMI_MASSES):
             self.bodies[hemi].set_data_3d(*masses[[indices[0]]].T)
             self.tips[hemi].set_data_3d(*masses[list(indices[1:])].T)
-        shown = {a.name: a for a in f.arrows[k]}
+        shown = {a.name: a for a in scene.arrows}
         for name, line in self.arrows.items():
             arrow = shown.get(name)
             if arrow is None:
@@ -105,17 +109,17 @@ class _Scene:
             line.set_color(arrow.color)
             self.heads[name].set_data_3d(*pts[1:].T)
             self.heads[name].set_color(arrow.color)
-        c = f.com_m[k]
-        h = f.view_half_width_m
+        c = scene.position_m
         self.ax.set_xlim(c[0] - h, c[0] + h)
         self.ax.set_ylim(c[1] - h, c[1] + h)
         self.ax.set_zlim(c[2] - h, c[2] + h)
-        if self.ground is not None:
-            x0, x1, y0, y1 = c[0] - h, c[0] + h, c[1] - h, c[1] + h
-            self.ground.set_data_3d([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], [0.0] * 5)
-        self.caption.set_text(f.captions[k])
-        self.fig.canvas.draw()
-        return _rgb(np.asarray(self.fig.canvas.buffer_rgba()))
+        if scene.ground is None:
+            self.ground.set_data_3d([], [], [])
+            return
+        xs = [c[0] - h, c[0] + h, c[0] + h, c[0] - h, c[0] - h]
+        ys = [c[1] - h, c[1] - h, c[1] + h, c[1] + h, c[1] - h]
+        zs = [scene.ground.height_at(x, y) for x, y in zip(xs, ys, strict=True)]
+        self.ground.set_data_3d(xs, ys, zs)
 
     def close(self) -> None:
         import matplotlib.pyplot as plt
