@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup.core.closed_loop import simulator_for
+from splitter_bringup.run.library import simulator_for
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_model.model import RobotModel, principal_inertia

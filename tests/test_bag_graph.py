@@ -23,9 +23,9 @@ from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 
 from splitter_bag import read_mcap_statistics, read_messages, read_metadata
-from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.run.graph_run import run_graph
 from splitter_bringup.run.inprocess import record_graph
+from splitter_bringup.run.library import run_closed_loop
 from splitter_bringup.run.replay import replay_mpc
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names

@@ -31,7 +31,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from splitter_bringup.foxglove_bridge_node import SCENE_TOPIC, TF_TOPIC, FoxgloveBridgeNode
+from splitter_bringup.nodes.foxglove_bridge_node import SCENE_TOPIC, TF_TOPIC, FoxgloveBridgeNode
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     TOPIC_MESSAGE_CLASSES,

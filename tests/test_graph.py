@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 import rclpy
 
-from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
 from splitter_bringup.run.inprocess import GraphRecord, clock_reached, start_graph
+from splitter_bringup.run.library import controller_config, run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController

@@ -14,8 +14,8 @@ import pytest
 
 from splitter_bag import read_metadata
 from splitter_bringup.analysis.summary import metric_values
-from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.run.graph_run import WallTiming, run_graph
+from splitter_bringup.run.library import run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_msgs_py import names
 from splitter_msgs_py.environment import ros_environment

@@ -36,7 +36,7 @@ from rclpy.serialization import serialize_message
 
 from splitter_bag import BagWriter, QosProfile
 from splitter_bag.player_node import PlayerNode
-from splitter_bringup.foxglove_bridge_node import FoxgloveBridgeNode
+from splitter_bringup.nodes.foxglove_bridge_node import FoxgloveBridgeNode
 from splitter_bringup.nodes.graph_watchdog_node import GraphWatchdogNode
 from splitter_bringup.run.inprocess import create_node
 from splitter_bringup.scenario.definition import load_scenario

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from splitter_bringup.core.closed_loop import simulator_for
+from splitter_bringup.run.library import simulator_for
 from splitter_bringup.scenario.definition import load_scenario
 
 

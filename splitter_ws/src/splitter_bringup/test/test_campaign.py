@@ -254,7 +254,7 @@ def test_campaign_rejects_bad_input(tmp_path, capsys) -> None:
 def test_the_closed_loop_flies_the_perturbed_plant_sensor_and_actuators() -> None:
     from dataclasses import replace
 
-    from splitter_bringup.core.closed_loop import Perturbation, run_closed_loop
+    from splitter_bringup.run.library import Perturbation, run_closed_loop
     from splitter_bringup.scenario.definition import load_scenario
 
     scenario = replace(load_scenario("spin_stabilization", "mpc"), duration_s=0.3)

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from splitter_bringup.analysis.metrics import attitude_reference_series, flight_summary
-from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+from splitter_bringup.run.library import controller_config, run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController

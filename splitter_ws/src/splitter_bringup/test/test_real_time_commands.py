@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from splitter_bringup.core.closed_loop import (
+from splitter_bringup.run.library import (
     controller_config,
     received_quaternion,
     simulator_for,

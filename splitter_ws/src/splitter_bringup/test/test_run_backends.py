@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_bringup.core.closed_loop import run_closed_loop
 from splitter_bringup.run.backends import BACKENDS, run, run_variant
+from splitter_bringup.run.library import run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 
 

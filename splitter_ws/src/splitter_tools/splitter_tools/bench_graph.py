@@ -82,12 +82,12 @@ def largest_relative_difference(a: dict[str, float], b: dict[str, float]) -> tup
 
 def bench_scenario(name: str, variant: str, out: Path, mode: str = "processes") -> dict:
     """Figures of one scenario variant through the graph (in ``mode``) and the library."""
-    from splitter_bringup.core.closed_loop import (
+    from splitter_bringup.run.graph_run import WallTiming, run_graph
+    from splitter_bringup.run.library import (
         CONTROL_PERIOD_NS,
         controller_config,
         run_closed_loop,
     )
-    from splitter_bringup.run.graph_run import WallTiming, run_graph
     from splitter_bringup.scenario.definition import load_scenario
     from splitter_model.model import RobotModel
     from splitter_mpc.core.controller import MorphingController

@@ -72,7 +72,7 @@ def run_benchmark(
     plot_path: Path | None = None,
 ) -> dict:
     """Fly the scenario with both controllers; the figures as a dictionary (and a PNG)."""
-    from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+    from splitter_bringup.run.library import controller_config, run_closed_loop
     from splitter_bringup.scenario.definition import load_scenario
     from splitter_model.model import RobotModel
     from splitter_mpc.core.baseline import OptiBaselineMpc

@@ -8,7 +8,7 @@ the same :func:`~splitter_sim.core.scene.scene_from_pose` as the simulator's:
 the ten masses from the simulator's geometry at the recorded joint positions and
 odometry pose, the angular momentum, the contact forces when known, the ground
 when there is gravity) and a caption with time, gait phase and ``|w|``.
-The drawing lives in :mod:`splitter_bringup.core.animation`.
+The drawing lives in :mod:`splitter_bringup.figures.animation`.
 """
 
 from __future__ import annotations

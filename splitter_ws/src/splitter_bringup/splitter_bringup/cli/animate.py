@@ -3,7 +3,7 @@
 The bag is read into a :class:`RunSeries` (:mod:`splitter_bringup.analysis.bag_series`)
 plus the two hemis' contact forces; the frames come from
 :mod:`splitter_bringup.analysis.flight_frames`, the drawing and encoding from
-:mod:`splitter_bringup.core.animation`. ``splitter run`` writes one per variant
+:mod:`splitter_bringup.figures.animation`. ``splitter run`` writes one per variant
 with :func:`splitter_bringup.figures.flight_animation.write_animation`.
 """
 
@@ -42,7 +42,7 @@ def main(args: argparse.Namespace) -> int:
     """Read the bag, render, print what was written; 1 on an unreadable bag, 2 on bad options."""
     from splitter_bag.core.metadata import MetadataError
     from splitter_bringup.analysis.bag_series import BagSeriesError
-    from splitter_bringup.core.animation import FORMATS
+    from splitter_bringup.figures.animation import FORMATS
     from splitter_bringup.run.run_bag import read_run_series
 
     if args.out.suffix.lower() not in FORMATS:

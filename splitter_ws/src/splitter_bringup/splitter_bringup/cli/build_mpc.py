@@ -48,7 +48,7 @@ def _jobs(text: str) -> int:
 
 def formulations(names: list[str]) -> dict[tuple[int, float, str, bool], Scenario]:
     """(horizon, prediction step [s], integrator, attitude states) -> first variant flying it."""
-    from splitter_bringup.core.closed_loop import controller_config
+    from splitter_bringup.run.library import controller_config
 
     found: dict[tuple[int, float, str, bool], Scenario] = {}
     for name in names:
@@ -65,7 +65,7 @@ def build(scenario: Scenario, solver: str) -> float:
     """Build (compile or load from the cache) the ``solver`` MPC a scenario flies; seconds taken."""
     from dataclasses import replace
 
-    from splitter_bringup.core.closed_loop import controller_config
+    from splitter_bringup.run.library import controller_config
     from splitter_model.model import RobotModel
     from splitter_mpc.core.mpc import InertialMorphingMpc
 
@@ -96,7 +96,7 @@ def _build_simulator_kernels() -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from splitter_bringup.core.closed_loop import controller_config
+    from splitter_bringup.run.library import controller_config
 
     _build_simulator_kernels()
     found = formulations(list(args.scenarios) or available_scenarios())

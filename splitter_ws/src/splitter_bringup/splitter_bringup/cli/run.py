@@ -3,7 +3,7 @@
 Backends: ``graph`` (default) runs the node graph, one process per node, records
 its bag and reads it back (:func:`splitter_bringup.run.graph_run.run_graph`);
 ``library`` (also ``--no-ros``) steps the same core objects in the lockstep
-order in one process (:mod:`splitter_bringup.core.closed_loop`).
+order in one process (:mod:`splitter_bringup.run.library`).
 Either way the same metrics and plots are made from a ``RunSeries``.
 
 Writes ``DIR/summary.json`` (the main variant's figures beside the paper's, and

@@ -1,7 +1,7 @@
 """A run's flight drawn in 3D to an mp4 or gif: its frames, then the drawing and encoding.
 
 The frames come from :mod:`splitter_bringup.analysis.flight_frames`, the drawing and
-encoding from :mod:`splitter_bringup.core.animation`. ROS-free.
+encoding from :mod:`splitter_bringup.figures.animation`. ROS-free.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ def write_animation(
 ):
     """Frames of ``series`` drawn to ``path``; returns the :class:`AnimationInfo`."""
     from splitter_bringup.analysis.flight_frames import flight_frames
-    from splitter_bringup.core.animation import render_animation
+    from splitter_bringup.figures.animation import render_animation
 
     frames = flight_frames(series, fps, contact_forces_n)
     return render_animation(frames, path, title, size_px)

@@ -3,7 +3,7 @@
 Backends (:data:`BACKENDS`):
 
 * ``library``: the library closed loop in this process, no ROS
-  (:func:`splitter_bringup.core.closed_loop.run_closed_loop`);
+  (:func:`splitter_bringup.run.library.run_closed_loop`);
 * ``processes``: the node graph, one process per node, recorded to a bag and read back
   (:func:`splitter_bringup.run.graph_run.run_graph_scenario` with the launcher);
 * ``inprocess``: the same graph, every node in this one process on one executor.
@@ -25,7 +25,7 @@ from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
 
 if TYPE_CHECKING:  # the library loop and the MPC load only when a run starts
-    from splitter_bringup.core.closed_loop import Perturbation, ProgressCallback
+    from splitter_bringup.run.library import Perturbation, ProgressCallback
     from splitter_mpc.core.mpc import MpcSettings
 
 LIBRARY = "library"
@@ -84,7 +84,7 @@ def _run_library(
     perturbation: Perturbation | None,
     progress: ProgressCallback | None,
 ) -> VariantRun:
-    from splitter_bringup.core.closed_loop import controller_config, run_closed_loop
+    from splitter_bringup.run.library import controller_config, run_closed_loop
     from splitter_model.model import RobotModel
     from splitter_mpc.core.controller import MorphingController
 

@@ -36,11 +36,11 @@ FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
 
 
 def flight_perturbation(draw: Draw, spec: PerturbationSpec | None):
-    """The closed loop's :class:`~splitter_bringup.core.closed_loop.Perturbation` of a draw.
+    """The closed loop's :class:`~splitter_bringup.run.library.Perturbation` of a draw.
 
     None when ``spec`` perturbs nothing (the nominal closed loop, bit for bit).
     """
-    from splitter_bringup.core.closed_loop import Perturbation
+    from splitter_bringup.run.library import Perturbation
 
     if spec is None or not spec.active:
         return None

@@ -112,7 +112,7 @@ def launch(
 
     ``stall_timeout_s``: wall time without progress after which the watchdog names a
     node stalled (module doc). ``foxglove_port``: also serve the graph to Foxglove on
-    ``ws://foxglove_host:foxglove_port`` (:mod:`splitter_bringup.foxglove_bridge_node`).
+    ``ws://foxglove_host:foxglove_port`` (:mod:`splitter_bringup.nodes.foxglove_bridge_node`).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     with choose_domain(domain_id) as domain:
@@ -258,8 +258,8 @@ def _with_foxglove(nodes: list[NodeLaunch], host: str, port: int) -> list[NodeLa
     """``nodes`` with the Foxglove bridge before the simulator (it sees the run from its start)."""
     bridge = NodeLaunch(
         FOXGLOVE_BRIDGE,
-        "splitter_bringup.foxglove_bridge_node:main",
-        "splitter_bringup.foxglove_bridge_node:FoxgloveBridgeNode",
+        "splitter_bringup.nodes.foxglove_bridge_node:main",
+        "splitter_bringup.nodes.foxglove_bridge_node:FoxgloveBridgeNode",
         {"use_sim_time": True, "host": host, "port": int(port)},
     )
     out = [n for n in nodes if n.name != "simulator"]

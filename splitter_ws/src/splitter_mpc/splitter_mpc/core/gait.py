@@ -284,7 +284,7 @@ def jump_wrench(
 
 # --- the jump plan -------------------------------------------------------------------------
 class JumpLike(Protocol):
-    """Anything shaped like ``splitter_bringup.core.scenario.JumpSpec``."""
+    """Anything shaped like ``splitter_bringup.scenario.definition.JumpSpec``."""
 
     time_s: float
     force_n: Sequence[float]

@@ -4,8 +4,8 @@
 simulator state, :func:`scene_of_state`; from the graph's messages; from a recorded
 series). The simulator publishes it (``/splitter/scene/masses`` beside the pose,
 inertia, rate and contact wrench topics) and draws ``/splitter/markers`` from it;
-the Foxglove bridge (:mod:`splitter_bringup.foxglove_bridge_node`) and the
-animation (:mod:`splitter_bringup.core.animation`) draw it too.
+the Foxglove bridge (:mod:`splitter_bringup.nodes.foxglove_bridge_node`) and the
+animation (:mod:`splitter_bringup.figures.animation`) draw it too.
 
 * Mass positions: the simulator's own geometry (:class:`splitter_sim.core.shape.ShapeKinematics`)
   from the 25 joint positions, about the centre of mass, rotated and moved by the

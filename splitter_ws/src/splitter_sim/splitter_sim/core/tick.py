@@ -3,7 +3,7 @@
 :class:`SimulatorTick` owns one :class:`~splitter_sim.core.simulator.Simulator` and
 every decision the ``simulator`` node makes around it (docs/ARCHITECTURE.md,
 "Lockstep protocol"); the node only turns messages into these calls and the
-results into messages, and the library loop (``splitter_bringup.core.closed_loop``)
+results into messages, and the library loop (``splitter_bringup.run.library``)
 drives the same object:
 
 * stamp rules (:class:`CommandStamps`): a command answers a state the simulator

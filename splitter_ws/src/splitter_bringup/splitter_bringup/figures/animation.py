@@ -1,4 +1,4 @@
-"""Draw :class:`~splitter_bringup.core.flight_frames.FlightFrames` in 3D and encode mp4 or gif.
+"""Draw :class:`~splitter_bringup.analysis.flight_frames.FlightFrames` in 3D and encode mp4 or gif.
 
 Thin plotting layer: one matplotlib figure whose artists are updated frame by
 frame (the dumbbell's masses, tether, limbs, the arrows of

@@ -1,1 +1,0 @@
-"""ROS-free algorithm core of splitter_bringup: never imports rclpy."""
