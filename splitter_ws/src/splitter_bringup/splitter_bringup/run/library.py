@@ -1,29 +1,29 @@
 """The library closed loop: a scenario run without ROS, in the graph's lockstep order.
 
-The same core objects the nodes wrap, called in the order of the lockstep
-protocol (docs/ARCHITECTURE.md), so that this loop and the node graph agree to
-solver tolerance. For each simulator step at time ``t`` (5 ms):
+The per-tick cores the nodes drive, driven here in the order of the lockstep
+protocol (docs/ARCHITECTURE.md), so that this loop and the node graph agree by
+construction, not by care: each node converts messages to and from the same
+object's calls. For each simulator step at time ``t`` (5 ms):
 
-1. the simulator's state at ``t`` (what it publishes: imu, inertia, odom,
-   contact wrenches, joint_states);
+1. the simulator's state at ``t`` (``SimulatorTick.state``: what the simulator node
+   publishes: imu, inertia, odom, contact wrenches, joint_states);
 2. on a control tick (``t % 10 ms == 0``):
-   a. gait phase manager: ``GaitPhaseMachine.update`` with odom, the contact
-      normal forces, ``r_x`` = tether / 2 and the measured principal inertia; its
-      attitude reference (first tick, Landing) goes to the MPC as the latched
-      reference topics would; its jump wrench to the simulator;
-   b. MPC: ``MorphingController.on_state(t, w, q, I, phase)`` -> setpoint stamped t;
-   c. allocator: ``TetherLimbAllocator.allocate(t, setpoint, w)`` -> joint
-      commands stamped t, sent to the simulator;
-3. the simulator steps to ``t + 5 ms`` (between ticks on the last commands).
+   a. gait phase manager: ``GaitTick.on_state`` with odom, the contact forces, the
+      tether length and the measured principal inertia; its phase, attitude
+      reference and answer go to ``MpcTick`` as the latched topics and the jump
+      command would; its jump wrench to ``SimulatorTick.command_jump``;
+   b. MPC: ``MpcTick.on_state(t, w, q, I)`` -> setpoint stamped t;
+   c. allocator: ``AllocatorTick.lockstep_tick(t, I, w, setpoint)`` -> joint
+      commands stamped t, to ``SimulatorTick.command_joints``;
+3. ``SimulatorTick.step`` to ``t + 5 ms`` (between ticks on the last commands).
 
 Every step's state is recorded into a :class:`RunSeries`. ROS-free.
 
 Messages carry float64 exactly, but every quaternion is normalised once when a
 message is made and once when it is read (``splitter_msgs_py.conversions``):
-the loop applies the same normalisations (:func:`received_quaternion`), and the
-allocator starts, as its node does, from the projected first measured inertia.
-Then this loop and the process graph give the same spin_stabilization flight to
-the last bit (measured). It matters: the closed loop amplifies 1e-16 input
+the loop applies the same normalisations (:func:`received_quaternion`). Then this
+loop and the process graph give the same spin_stabilization flight to the last bit
+(measured). It matters: the closed loop amplifies 1e-16 input
 differences to ~0.01 rad/s within 8 s (as does solving to 1e-8 instead of 1e-10).
 """
 
@@ -36,22 +36,22 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
 from splitter_bringup.scenario.graph_config import gait_parameters
-from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
-from splitter_ik.core.projection import project_inertia
+from splitter_ik.core.allocator_tick import AllocatorTick
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
-from splitter_mpc.core.gait import GaitPhaseMachine, gait_config_from_parameters
+from splitter_mpc.core.gait_tick import BodyState, GaitTick, gait_settings_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
+from splitter_mpc.core.mpc_tick import MpcTick
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
-from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
-from splitter_sim.core.stepping import pushing_hemi
+from splitter_sim.core.settings import SimulatorSettings, initial_state_from_euler
+from splitter_sim.core.simulator import SimConfig, Simulator
+from splitter_sim.core.tick import SimulatorTick
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -131,15 +131,12 @@ def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
 
 def simulator_for(scenario: Scenario, model: RobotModel | None = None) -> Simulator:
     """The simulator set up as ``scenario`` describes (initial state, step, gravity, ground)."""
-    xyzw = Rotation.from_euler(
-        "xyz", np.asarray(scenario.initial_orientation_euler_deg, dtype=float), degrees=True
-    ).as_quat()
-    initial = InitialState(
-        position_m=scenario.initial_position_m,
-        velocity_m_s=scenario.initial_velocity_m_s,
-        orientation_wxyz=np.roll(xyzw, 1),
-        angular_velocity_rad_s=scenario.initial_angular_velocity_rad_s,
-        radii_m=scenario.initial_radii_m,
+    initial = initial_state_from_euler(
+        scenario.initial_position_m,
+        scenario.initial_velocity_m_s,
+        scenario.initial_orientation_euler_deg,
+        scenario.initial_angular_velocity_rad_s,
+        scenario.initial_radii_m,
     )
     config = SimConfig(
         dt_s=float(scenario.sim_dt_s),
@@ -213,18 +210,19 @@ def run_closed_loop(
                 perturbation=perturbation,
             )
     plant = None if perturbation is None else perturbation.plant_model
-    sim = simulator_for(scenario, plant or model)
+    sim = SimulatorTick(
+        simulator_for(scenario, plant or model),
+        SimulatorSettings(control_period_s=CONTROL_PERIOD_NS / NS_PER_S),
+    )
     perturbed = (
         None if perturbation is None else _Perturbed(perturbation, CONTROL_PERIOD_NS / NS_PER_S)
     )
-    gait = GaitPhaseMachine(gait_config_from_parameters(gait_parameters(scenario)))
-    # The allocator node starts from the radii of the first measured inertia (projected,
-    # its default ``initialize_from_measured_inertia``): the same start here.
-    start_radii = project_inertia(model, sim.state().principal_inertia_kg_m2).radii_m
-    allocator = TetherLimbAllocator(model, AllocatorConfig(), start_radii)
+    gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
+    mpc_tick = MpcTick(controller)
+    allocator = AllocatorTick(model)  # starts, as its node, from the first measured inertia
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
     duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
-    dt_ns = sim.config.dt_ns
+    dt_ns = sim.sim.config.dt_ns
     n_steps = round(duration * NS_PER_S / dt_ns)
     if CONTROL_PERIOD_NS % dt_ns != 0:
         raise ValueError(f"sim step {dt_ns} ns does not divide the control tick")
@@ -233,7 +231,6 @@ def run_closed_loop(
     phases: list[str] = []
     setpoint = np.asarray(sim.state().principal_inertia_kg_m2, dtype=float)
     phase_name = ""
-    solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
     counts = {"failures": 0, "deadline_misses": 0}  # cumulative, as on /diagnostics
     started = time.monotonic()
     report_every = max(1, n_steps // 20)
@@ -242,25 +239,28 @@ def run_closed_loop(
         t = state.t_ns
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
-            out = gait.update(
-                t,
-                state.position_m,
-                state.velocity_m_s,
-                received_quaternion(state.orientation_wxyz, hops=1),  # odom
-                state.angular_velocity_rad_s,
-                float(state.joint_position[TETHER_INDEX]) / 2.0,
-                state.contact_force_n[:, 2],
-                state.principal_inertia_kg_m2,  # /splitter/inertia
+            q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
+            body = BodyState(
+                state.position_m, state.velocity_m_s, q_measured, state.angular_velocity_rad_s
             )
+            answer = gait.on_state(
+                t,
+                body,
+                state.contact_force_n,
+                float(state.joint_position[TETHER_INDEX]),
+                principal_inertia_kg_m2=state.principal_inertia_kg_m2,  # /splitter/inertia
+            )
+            if answer.error:
+                raise ValueError(f"gait phase manager at t = {t * 1e-9:.3f} s: {answer.error}")
+            out = answer.output
             phase_name = out.phase.value
+            mpc_tick.set_phase(phase_name)
             if out.reference is not None:
                 ref = out.reference
                 q_ref = received_quaternion(ref.q_ref_wxyz, hops=1)  # pose message
-                controller.set_reference(ref.stamp_ns, ref.w_ref_rad_s, q_ref)
-            # The simulator node reads the pushing hemi off the wrench's torque: the same here.
-            sim.command_jump_force(
-                out.jump_force_n, pushing_hemi(state, out.jump_force_n, out.jump_torque_nm)
-            )
+                mpc_tick.set_reference(ref.stamp_ns, ref.w_ref_rad_s, q_ref)
+            mpc_tick.gait_answered(t)
+            sim.command_jump(t, out.jump_force_n, out.jump_torque_nm)
             if t in fail_ns:
                 controller.inject_solver_failures(1)
             gyro = (  # the rate of the imu message
@@ -268,13 +268,10 @@ def run_closed_loop(
                 if perturbed is None
                 else perturbed.gyro(state.angular_velocity_rad_s)
             )
-            setpoint = controller.on_state(
-                t,
-                gyro,
-                received_quaternion(state.orientation_wxyz, hops=1),  # imu message
-                state.principal_inertia_kg_m2,
-                phase_name,
-            )
+            planned = mpc_tick.on_state(t, gyro, q_measured, state.principal_inertia_kg_m2)
+            if planned is None or planned.setpoint_kg_m2 is None:
+                raise ValueError(f"MPC tick at t = {t * 1e-9:.3f} s not answered: {planned}")
+            setpoint = planned.setpoint_kg_m2
             status = controller.status
             if status.replanned:
                 solve = {
@@ -284,13 +281,12 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            allocation = allocator.allocate(t, setpoint, gyro)
-            if perturbed is None:
-                sim.command_joints(allocation.joint_position, allocation.joint_velocity)
-            else:
-                sim.command_joints(
-                    *perturbed.command(allocation.joint_position, allocation.joint_velocity)
-                )
+            commanded = allocator.lockstep_tick(t, state.principal_inertia_kg_m2, gyro, setpoint)
+            for allocation in commanded.commands:  # one per tick in lockstep
+                position, velocity = allocation.joint_position, allocation.joint_velocity
+                if perturbed is not None:
+                    position, velocity = perturbed.command(position, velocity)
+                sim.command_joints(t, position, velocity)
         _record(rec, state, setpoint, solve, counts)
         phases.append(phase_name)
         if step < n_steps:
