@@ -7,6 +7,7 @@ Also checks the ROS launch file for full installs against the launcher's graph
 from __future__ import annotations
 
 import ast
+import configparser
 import os
 import re
 import signal
@@ -39,9 +40,11 @@ def test_launch_file_starts_every_node_of_the_graph_by_its_console_script(tmp_pa
     assert {n.name for n in nodes} == set(executables)
     for node in nodes:
         package, script = executables[node.name]
-        setup = (ROOT / f"splitter_ws/src/{package}/setup.py").read_text()
+        setup = configparser.ConfigParser()
+        setup.read(ROOT / f"splitter_ws/src/{package}/setup.cfg")
+        scripts = setup["options.entry_points"]["console_scripts"].strip().splitlines()
         module = node.entry.split(":")[0]
-        assert re.search(rf'"{script} = {re.escape(module)}:main"', setup), (package, script)
+        assert f"{script} = {module}:main" in scripts, (package, script)
 
 
 def start_launcher(out: Path, domain_id: int, *options: str) -> subprocess.Popen:

@@ -1,19 +1,3 @@
-from setuptools import find_packages, setup
+from setuptools import setup
 
-PACKAGE_NAME = "splitter_model"
-
-setup(
-    name=PACKAGE_NAME,
-    version="0.1.0",
-    packages=find_packages(exclude=["test"]),
-    data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE_NAME]),
-        ("share/" + PACKAGE_NAME, ["package.xml"]),
-    ],
-    install_requires=["setuptools"],
-    zip_safe=True,
-    maintainer="SPLITTER developers",
-    maintainer_email="splitter-dev@example.com",
-    description="The SPLITTER robot model shared by every layer (ROS-free).",
-    license="Apache-2.0",
-)
+setup()

@@ -1,30 +1,3 @@
-from glob import glob
+from setuptools import setup
 
-from setuptools import find_packages, setup
-
-PACKAGE_NAME = "splitter_mpc"
-
-setup(
-    name=PACKAGE_NAME,
-    version="0.1.0",
-    packages=find_packages(exclude=["test"]),
-    package_data={"": ["*.xml", "*.yaml", "*.json"]},
-    include_package_data=True,
-    data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE_NAME]),
-        ("share/" + PACKAGE_NAME, ["package.xml"]),
-        ("share/" + PACKAGE_NAME + "/config", glob("config/*.yaml")),
-    ],
-    install_requires=["setuptools"],
-    zip_safe=True,
-    maintainer="SPLITTER developers",
-    maintainer_email="splitter-dev@example.com",
-    description="SPLITTER inertial-morphing MPC and gait phase manager.",
-    license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "inertial_morphing_mpc = splitter_mpc.inertial_morphing_mpc_node:main",
-            "gait_phase_manager = splitter_mpc.gait_phase_manager_node:main",
-        ],
-    },
-)
+setup()

@@ -1,29 +1,3 @@
-from glob import glob
+from setuptools import setup
 
-from setuptools import find_packages, setup
-
-PACKAGE_NAME = "splitter_sim"
-
-setup(
-    name=PACKAGE_NAME,
-    version="0.1.0",
-    packages=find_packages(exclude=["test"]),
-    package_data={"": ["*.xml", "*.yaml", "*.json"]},
-    include_package_data=True,
-    data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE_NAME]),
-        ("share/" + PACKAGE_NAME, ["package.xml"]),
-        ("share/" + PACKAGE_NAME + "/config", glob("config/*.yaml")),
-    ],
-    install_requires=["setuptools"],
-    zip_safe=True,
-    maintainer="SPLITTER developers",
-    maintainer_email="splitter-dev@example.com",
-    description="SPLITTER variable-inertia rigid-body simulator and its node.",
-    license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "simulator = splitter_sim.simulator_node:main",
-        ],
-    },
-)
+setup()

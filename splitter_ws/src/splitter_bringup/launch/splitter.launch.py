@@ -22,7 +22,7 @@ from splitter_bringup.scenario.definition import load_scenario
 from splitter_bringup.scenario.graph_config import graph_nodes
 from splitter_msgs_py.environment import loopback_profile_path
 
-# node name -> (package, executable) of the console scripts in setup.py
+# node name -> (package, executable) of the console scripts in setup.cfg
 EXECUTABLES = {
     "recorder": ("splitter_bag", "recorder"),
     "inertial_morphing_mpc": ("splitter_mpc", "inertial_morphing_mpc"),
