@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_model.model import angular_velocity_after_morphing
 from splitter_mpc.core.controller import ControllerConfig, ControllerStatus, MorphingController
 from splitter_mpc.core.mpc import NS_PER_S, MpcSettings, settings_for_weights
-from splitter_mpc.core.ocp import OBJECTIVES, MpcWeights
+from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import SolverOptions
 from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
@@ -51,7 +51,6 @@ from splitter_msgs_py.core.stamps import MessageValidationError, StampGate
 MAX_RATE_RAD_S = 100.0  # [rad/s] a body rate or rate reference component beyond it is corrupt
 TICK_INPUTS = (names.IMU, names.INERTIA)
 ClockNs = int | Callable[[], int | None] | None  # [ns] simulated time, or a function giving it
-_WEIGHTS = MpcWeights()
 
 
 @dataclass(frozen=True)
@@ -73,80 +72,10 @@ class MpcTickSettings:
         return round(self.diagnostics_period_s * NS_PER_S)
 
 
-@dataclass(frozen=True)
-class WeightParameters:
-    """The node's weight parameters: :class:`MpcWeights` (defaults from there), live."""
-
-    q_w: tuple[float, float, float] = parameter_field(
-        _WEIGHTS.q_w,
-        "angular velocity weights Q_w",
-        min_value=0.0,
-        max_value=1e9,
-        length=3,
-        live=True,
-    )
-    r: tuple[float, float, float] = parameter_field(
-        _WEIGHTS.r,
-        "control effort weights R (dI per step)",
-        min_value=1e-9,
-        max_value=1e9,
-        length=3,
-        live=True,
-    )
-    q_t: tuple[float, float, float] = parameter_field(
-        _WEIGHTS.q_t,
-        "terminal angular velocity weights Q_t",
-        min_value=0.0,
-        max_value=1e9,
-        length=3,
-        live=True,
-    )
-    q_q: float = parameter_field(
-        _WEIGHTS.q_q,
-        "quaternion tracking weight Q_q (live while > 0 from start-up: the attitude is then "
-        "in the MPC's state)",
-        min_value=0.0,
-        max_value=1e9,
-        live=True,
-    )
-    q_tq: float = parameter_field(
-        _WEIGHTS.q_tq,
-        "terminal quaternion weight Q_tq (live like q_q)",
-        min_value=0.0,
-        max_value=1e9,
-        live=True,
-    )
-    tension_slack_weight: float = parameter_field(
-        _WEIGHTS.tension_slack,
-        "L1 penalty of a tension shortfall [s^2/rad^2]",
-        min_value=0.0,
-        max_value=1e9,
-        live=True,
-    )
-    objective: str = parameter_field(
-        _WEIGHTS.objective,
-        "how q_w/q_t weigh the rate: momentum (rate across w_ref, reachable spin along it) "
-        "or paper (w - w_ref)",
-        choices=OBJECTIVES,
-        live=True,
-    )
-
-    def weights(self) -> MpcWeights:
-        return MpcWeights(
-            q_w=self.q_w,
-            r=self.r,
-            q_t=self.q_t,
-            q_q=self.q_q,
-            q_tq=self.q_tq,
-            tension_slack=self.tension_slack_weight,
-            objective=self.objective,
-        )
-
-
 # The node's parameters: the fields of these classes marked with parameter_field ...
 PARAMETER_CLASSES = (
     ControllerConfig,
-    WeightParameters,
+    MpcWeights,
     MpcSettings,
     SolverOptions,
     MpcTickSettings,
@@ -157,6 +86,7 @@ PARAMETER_NAMES = {
     "tol": "tolerance",
     "isolated": "isolated_solver",
     "wait_for_worker_start": "wait_for_solver_start",
+    "tension_slack": "tension_slack_weight",
 }
 
 
@@ -176,7 +106,7 @@ def controller_config_from_parameters(values: Mapping[str, object]) -> Controlle
 
     ``ValueError`` when the values do not make a valid configuration.
     """
-    weights = WeightParameters(**_fields(WeightParameters, values)).weights()  # type: ignore[arg-type]
+    weights = MpcWeights(**_fields(MpcWeights, values))  # type: ignore[arg-type]
     options = SolverOptions(**_fields(SolverOptions, values))  # type: ignore[arg-type]
     mpc = MpcSettings(options=options, **_fields(MpcSettings, values))  # type: ignore[arg-type]
     return ControllerConfig(

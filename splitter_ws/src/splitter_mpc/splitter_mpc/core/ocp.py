@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -62,6 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.rotations import quaternion_product
 from splitter_mpc.core.limits import MorphingLimits
+from splitter_msgs_py.core.parameter_fields import parameter_field
 
 N_MEASURED = 10  # measured state [w (3), q (4, wxyz), principal moments (3)]
 NU = 4  # [ds(3), tension slack]
@@ -74,6 +76,8 @@ OBJECTIVES = ("momentum", "paper")
 INTEGRATORS = ("euler", "rk4")
 _AXIS_EPS = 1e-9  # [rad/s] below this |w_ref| has no axis: the paper's J_w is used
 _SLACK_QUADRATIC = 1e-4  # [s^4/rad^4] keeps the slack's Hessian regular
+MAX_WEIGHT = 1e9  # [weight's unit] the largest weight a node parameter takes
+MIN_EFFORT_WEIGHT = 1e-9  # [weight's unit] the smallest R a node parameter takes (R > 0)
 
 
 @dataclass(frozen=True)
@@ -233,6 +237,24 @@ class ParameterLayout:
         return self.momentum_target.stop
 
 
+def _weight_field(
+    default: float | tuple[float, float, float],
+    description: str,
+    *,
+    min_value: float = 0.0,
+    length: int | None = None,
+) -> Any:
+    """A weight the MPC node exposes as a live parameter in ``[min_value, MAX_WEIGHT]``."""
+    return parameter_field(
+        default,
+        description,
+        min_value=min_value,
+        max_value=MAX_WEIGHT,
+        length=length,
+        live=True,
+    )
+
+
 @dataclass(frozen=True)
 class MpcWeights:
     """The paper's diagonal weights (Tables I and II), the objective they weigh, additions.
@@ -250,14 +272,33 @@ class MpcWeights:
       at Q_w = 100.
     """
 
-    q_w: tuple[float, float, float] = (100.0, 100.0, 100.0)
-    r: tuple[float, float, float] = (0.01, 1.0, 1.0)
-    q_t: tuple[float, float, float] = (100.0, 10.0, 100.0)
-    q_q: float = 0.0
-    q_tq: float = 0.0
-    tension_slack: float = 100.0
+    q_w: tuple[float, float, float] = _weight_field(
+        (100.0, 100.0, 100.0), "angular velocity weights Q_w", length=3
+    )
+    r: tuple[float, float, float] = _weight_field(
+        (0.01, 1.0, 1.0),
+        "control effort weights R (dI per step)",
+        min_value=MIN_EFFORT_WEIGHT,
+        length=3,
+    )
+    q_t: tuple[float, float, float] = _weight_field(
+        (100.0, 10.0, 100.0), "terminal angular velocity weights Q_t", length=3
+    )
+    q_q: float = _weight_field(
+        0.0,
+        "quaternion tracking weight Q_q (live while > 0 from start-up: the attitude is then "
+        "in the MPC's state)",
+    )
+    q_tq: float = _weight_field(0.0, "terminal quaternion weight Q_tq (live like q_q)")
+    tension_slack: float = _weight_field(100.0, "L1 penalty of a tension shortfall [s^2/rad^2]")
     q_i: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    objective: str = "paper"
+    objective: str = parameter_field(
+        "paper",
+        "how q_w/q_t weigh the rate: momentum (rate across w_ref, reachable spin along it) "
+        "or paper (w - w_ref)",
+        choices=OBJECTIVES,
+        live=True,
+    )
 
     def __post_init__(self) -> None:
         if len(self.q_w) != 3 or len(self.r) != 3 or len(self.q_t) != 3 or len(self.q_i) != 3:
