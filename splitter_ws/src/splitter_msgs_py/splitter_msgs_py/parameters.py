@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -43,9 +43,13 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from splitter_msgs_py.core.parameter_fields import parameter_fields
+from splitter_msgs_py.core.parameter_fields import (
+    InvalidParameterError,
+    ParameterSpec,
+    ParameterValue,
+    parameter_fields,
+)
 
-ParameterValue = bool | int | float | str | list[float] | list[str]
 # Applies a live change: the node's validated values after the change (every
 # parameter declared through declare_parameters). Raises InvalidParameterError or
 # ValueError to refuse it (nothing applied).
@@ -56,121 +60,35 @@ LIVE_NOTE = " [live: a valid runtime change is applied]"
 USE_SIM_TIME = "use_sim_time"
 
 
-class InvalidParameterError(ValueError):
-    """A node parameter whose value is out of range, non-finite or of the wrong shape."""
-
-
-@dataclass(frozen=True)
-class ParameterSpec:
-    """One node parameter: the default's type decides the ROS type.
-
-    A list default is a float array, or a string array with ``item_type=str``
-    (needed because an empty default says nothing about its items). ``live``:
-    a runtime change is validated and applied (module docstring); otherwise the
-    parameter is read-only.
-    """
-
-    name: str
-    default: ParameterValue
-    description: str
-    min_value: float | None = None
-    max_value: float | None = None
-    choices: tuple[str, ...] | None = None
-    length: int | None = None  # fixed size of an array
-    item_type: type = float  # float or str, for list defaults
-    live: bool = False
-
-    def descriptor(self) -> ParameterDescriptor:
-        """The ROS descriptor advertising description, range and read-only."""
-        text = self.description
-        if self.choices:
-            text += f" (one of: {', '.join(self.choices)})"
-        if self.length is not None:
-            text += f" ({self.length} values)"
-        text += LIVE_NOTE if self.live else READ_ONLY_NOTE
-        desc = ParameterDescriptor(name=self.name, description=text, read_only=not self.live)
-        lo, hi = self.min_value, self.max_value
-        if isinstance(self.default, bool) or (lo is None and hi is None):
-            return desc
-        if isinstance(self.default, int) and self.length is None:
-            desc.integer_range = [
-                IntegerRange(
-                    from_value=int(lo if lo is not None else -(2**31)),
-                    to_value=int(hi if hi is not None else 2**31 - 1),
-                    step=0,
-                )
-            ]
-        elif isinstance(self.default, float) and self.length is None:
-            desc.floating_point_range = [
-                FloatingPointRange(
-                    from_value=float(lo if lo is not None else -math.inf),
-                    to_value=float(hi if hi is not None else math.inf),
-                    step=0.0,
-                )
-            ]
+def descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    """The ROS descriptor of ``spec``: description, range and read-only."""
+    text = spec.description
+    if spec.choices:
+        text += f" (one of: {', '.join(spec.choices)})"
+    if spec.length is not None:
+        text += f" ({spec.length} values)"
+    text += LIVE_NOTE if spec.live else READ_ONLY_NOTE
+    desc = ParameterDescriptor(name=spec.name, description=text, read_only=not spec.live)
+    lo, hi = spec.min_value, spec.max_value
+    if isinstance(spec.default, bool) or (lo is None and hi is None):
         return desc
-
-    @property
-    def is_float(self) -> bool:
-        """A float number or a float array (an integer given for it is accepted)."""
-        if isinstance(self.default, list):
-            return self.item_type is not str
-        return isinstance(self.default, float)
-
-    def validate(self, value: object) -> ParameterValue:
-        """The value, checked against type, finiteness, range, choices and length."""
-        where = f"parameter '{self.name}'"
-        if isinstance(self.default, bool):
-            if not isinstance(value, bool):
-                raise InvalidParameterError(f"{where} must be a bool, got {value!r}")
-            return value
-        if isinstance(self.default, str):
-            if not isinstance(value, str):
-                raise InvalidParameterError(f"{where} must be a string, got {value!r}")
-            if self.choices and value not in self.choices:
-                raise InvalidParameterError(f"{where} must be one of {self.choices}, got {value!r}")
-            return value
-        if isinstance(self.default, list) and self.item_type is str:
-            if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
-                raise InvalidParameterError(f"{where} must be a list of strings, got {value!r}")
-            if self.choices and any(v not in self.choices for v in value):
-                raise InvalidParameterError(f"{where} items must be in {self.choices}")
-            return list(value)
-        if isinstance(self.default, list):
-            items = None if isinstance(value, str | bytes) else value
-            try:
-                if any(isinstance(v, bool) for v in items):  # type: ignore[union-attr]
-                    raise TypeError("bool items")
-                values = [float(v) for v in items]  # type: ignore[union-attr]
-            except (TypeError, ValueError):
-                raise InvalidParameterError(
-                    f"{where} must be a list of numbers, got {value!r}"
-                ) from None
-            if self.length is not None and len(values) != self.length:
-                raise InvalidParameterError(
-                    f"{where} must have {self.length} values, got {len(values)}"
-                )
-            for v in values:
-                self._check_number(v, where)
-            return values
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise InvalidParameterError(f"{where} must be a number, got {value!r}")
-        if isinstance(self.default, int):
-            if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
-                raise InvalidParameterError(f"{where} must be an integer, got {value!r}")
-            number: int | float = int(value)
-        else:
-            number = float(value)
-        self._check_number(float(number), where)
-        return number
-
-    def _check_number(self, v: float, where: str) -> None:
-        if not math.isfinite(v):
-            raise InvalidParameterError(f"{where} must be finite, got {v}")
-        if self.min_value is not None and v < self.min_value:
-            raise InvalidParameterError(f"{where} must be >= {self.min_value}, got {v}")
-        if self.max_value is not None and v > self.max_value:
-            raise InvalidParameterError(f"{where} must be <= {self.max_value}, got {v}")
+    if isinstance(spec.default, int) and spec.length is None:
+        desc.integer_range = [
+            IntegerRange(
+                from_value=int(lo if lo is not None else -(2**31)),
+                to_value=int(hi if hi is not None else 2**31 - 1),
+                step=0,
+            )
+        ]
+    elif isinstance(spec.default, float) and spec.length is None:
+        desc.floating_point_range = [
+            FloatingPointRange(
+                from_value=float(lo if lo is not None else -math.inf),
+                to_value=float(hi if hi is not None else math.inf),
+                step=0.0,
+            )
+        ]
+    return desc
 
 
 @dataclass
@@ -208,11 +126,11 @@ def declare_parameters(
         raise TypeError(f"live parameters {live} need an on_live_change function")
     values: dict[str, ParameterValue] = {}
     for spec in specs:
-        descriptor = spec.descriptor()
+        desc = descriptor(spec)
         # A YAML integer may set a float parameter; the type is checked by ``validate``.
-        descriptor.dynamic_typing = True
+        desc.dynamic_typing = True
         try:
-            node.declare_parameter(spec.name, spec.default, descriptor)
+            node.declare_parameter(spec.name, spec.default, desc)
         except ParameterException as exc:
             raise InvalidParameterError(f"parameter '{spec.name}': {exc}") from exc
         raw = node.get_parameter(spec.name).value
@@ -349,24 +267,11 @@ def specs_from_config(
     ``exclude``: fields the node does not expose; ``live``: fields made live here
     although the core marks them read-only (a node that can apply them).
     """
-    specs = []
-    for name, default, info in parameter_fields(config_class):
-        if name in exclude:
-            continue
-        specs.append(
-            ParameterSpec(
-                name=name,
-                default=list(default) if isinstance(default, tuple) else default,
-                description=info.description,
-                min_value=info.min_value,
-                max_value=info.max_value,
-                choices=info.choices,
-                length=info.length,
-                item_type=info.item_type,
-                live=info.live or name in live,
-            )
-        )
-    return tuple(specs)
+    return tuple(
+        replace(spec, live=spec.live or name in live)
+        for name, _default, spec in parameter_fields(config_class)
+        if name not in exclude
+    )
 
 
 def config_from_values(config_class: type, values: Mapping[str, ParameterValue], **others):
