@@ -38,7 +38,7 @@ from splitter_mpc.core.gait import (
 from splitter_mpc.core.tick_inputs import TickAssembler, TickEvents
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
-from splitter_msgs_py.core.parameter_fields import parameter_field, parameter_fields
+from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field, parameter_fields
 from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, MessageValidationError, StampGate
 
 TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
@@ -69,16 +69,12 @@ class GaitNodeSettings:
         (), "pushing hemi per planned jump: 'a', 'b' or 'auto'", item_type=str
     )
     control_period_s: float = parameter_field(
-        0.01,
-        "control tick period: ticks answered are the multiples of it [s]",
-        min_value=0.001,
-        max_value=1.0,
+        0.01, "control tick period: ticks answered are the multiples of it [s]", bounds=(0.001, 1.0)
     )
     diagnostics_period_s: float = parameter_field(
         0.1,
         "diagnostics period in simulated time, a multiple of control_period_s [s]",
-        min_value=0.001,
-        max_value=10.0,
+        bounds=PERIOD_S,
     )
 
     def __post_init__(self) -> None:

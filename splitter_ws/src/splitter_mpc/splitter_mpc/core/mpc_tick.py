@@ -46,11 +46,10 @@ from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.parameter_fields import parameter_field, parameter_fields
-from splitter_msgs_py.core.stamps import MessageValidationError, StampGate
+from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 
 MAX_RATE_RAD_S = 100.0  # [rad/s] a body rate or rate reference component beyond it is corrupt
 TICK_INPUTS = (names.IMU, names.INERTIA)
-ClockNs = int | Callable[[], int | None] | None  # [ns] simulated time, or a function giving it
 
 
 @dataclass(frozen=True)
@@ -293,7 +292,7 @@ class MpcTick:
             return None
         (t_ns, inputs), self._waiting = self._waiting, None
         (w, q), inertia = inputs[names.IMU], inputs[names.INERTIA]  # type: ignore[misc]
-        self.latency.record("state", t_ns, clock_ns() if callable(clock_ns) else clock_ns)
+        self.latency.record("state", t_ns, clock_value(clock_ns))
         if self.settings.plan_from_setpoints and self._last_setpoint is not None:
             # the commands stamped ahead reach the last setpoint before this tick's does
             w = angular_velocity_after_morphing(w, inertia, self._last_setpoint)

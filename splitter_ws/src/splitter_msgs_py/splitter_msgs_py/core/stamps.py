@@ -20,6 +20,12 @@ class MessageValidationError(ValueError):
 # newest stamp it accepted, or its clock) before it is rejected as corrupt: a stamp
 # accepted that far ahead would make every later, correct message look out of order.
 MAX_STAMP_LEAD_NS = 1_000_000_000
+ClockNs = int | Callable[[], int | None] | None  # [ns] a node's time, or a function giving it
+
+
+def clock_value(clock_ns: ClockNs) -> int | None:
+    """The time [ns] ``clock_ns`` gives (calling it if it is a function)."""
+    return clock_ns() if callable(clock_ns) else clock_ns
 
 
 class StampGate:
@@ -50,12 +56,7 @@ class StampGate:
         """The last stamp accepted on ``topic`` [ns], None before any."""
         return self._last.get(topic)
 
-    def check(
-        self,
-        topic: str,
-        t_ns: int,
-        clock_ns: int | Callable[[], int | None] | None = None,
-    ) -> int:
+    def check(self, topic: str, t_ns: int, clock_ns: ClockNs = None) -> int:
         """``t_ns`` when it may be accepted on ``topic``; ``MessageValidationError`` if not.
 
         ``clock_ns`` may be a function returning it: it is then called only when the
@@ -74,9 +75,7 @@ class StampGate:
         latest = self._latest
         if latest is not None and t_ns <= latest + self.max_lead_ns:
             return t_ns  # within the lead of the newest stamp: the clock cannot refuse it
-        if callable(clock_ns):
-            clock_ns = clock_ns()
-        references = [v for v in (clock_ns, latest) if v is not None]
+        references = [v for v in (clock_value(clock_ns), latest) if v is not None]
         if references:
             now = max(references)
             if t_ns > now + self.max_lead_ns:
@@ -93,11 +92,7 @@ class StampGate:
         self._latest = t_ns if self._latest is None else max(self._latest, t_ns)
 
     def admit(
-        self,
-        topic: str,
-        t_ns: int,
-        clock_ns: int | Callable[[], int | None] | None = None,
-        not_before_ns: int | None = None,
+        self, topic: str, t_ns: int, clock_ns: ClockNs = None, not_before_ns: int | None = None
     ) -> int:
         """Check ``t_ns`` (:meth:`check`, and not before ``not_before_ns``), then accept it.
 

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike
 
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
-from splitter_msgs_py.core.stamps import MessageValidationError, StampGate
+from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 from splitter_sim.core.actuators import validate_joint_command
 from splitter_sim.core.scene import Ground, Scene, scene_of_state
 from splitter_sim.core.settings import SimulatorSettings
@@ -75,13 +75,9 @@ class CommandStamps(StampGate):
         self.latency = InputLatency()  # of the admitted commands: arrival - stamp
 
     def admit(
-        self,
-        topic: str,
-        t_ns: int,
-        clock_ns: int | Callable[[], int | None] | None = None,
-        not_before_ns: int | None = None,
+        self, topic: str, t_ns: int, clock_ns: ClockNs = None, not_before_ns: int | None = None
     ) -> int:
-        now = clock_ns() if callable(clock_ns) else clock_ns
+        now = clock_value(clock_ns)
         if topic not in self.trajectory_topics:
             t_ns = super().admit(topic, t_ns, now, not_before_ns)
         elif now is None:
