@@ -59,7 +59,7 @@ from splitter_ik.core.tether import (
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
-from splitter_msgs_py.core.parameter_fields import parameter_field
+from splitter_msgs_py.core.parameter_fields import FRACTION, parameter_field
 
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
 KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
@@ -76,16 +76,14 @@ class AllocatorConfig:
     control_period_s: float = parameter_field(  # [s] one command per control tick (100 Hz)
         0.01,
         "control tick: one command per setpoint, joint velocities over this period [s]",
-        min_value=1e-4,
-        max_value=10.0,
+        bounds=(1e-4, 10.0),
     )
     # [N] least tether tension kept while reeling; 1 N keeps a light tether straight
     # and is 4 % of the tension of the paper's spin (9 kg * 2.8 m * 1 rad^2/s^2).
     tension_margin_n: float = parameter_field(
         1.0,
         "least tether tension kept while reeling (the tether only pulls) [N]",
-        min_value=1e-6,
-        max_value=1e4,
+        bounds=(1e-6, 1e4),
         live=True,
     )
     # [-] share of the centripetal load kept as tension when that load is under the
@@ -98,8 +96,7 @@ class AllocatorConfig:
         0.5,
         "share of the centripetal tether load kept as tension when the load is under "
         "tension_margin_n (slow spin across the tether) [-]",
-        min_value=1e-3,
-        max_value=1.0,
+        bounds=FRACTION,
         live=True,
     )
     # [s] the reel follows the setpoint's mean velocity over this window (one re-plan
@@ -112,15 +109,13 @@ class AllocatorConfig:
         0.1,
         "the reel follows the setpoints' mean velocity over this window (one MPC re-plan "
         "period), braking taut; 0: each setpoint approached as a resting target [s]",
-        min_value=0.0,
-        max_value=10.0,
+        bounds=(0.0, 10.0),
         live=True,
     )
     speed_fraction: float = parameter_field(  # [-] share of the joint and reel speed limits
         1.0,
         "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
-        min_value=1e-3,
-        max_value=1.0,
+        bounds=FRACTION,
     )
     # Shares of the acceleration limits commanded, (0, 1]. The limits are the actuators'
     # (143 rad/s^2: peak torque with no load; 5 m/s^2 reel start-up); a servo that
@@ -133,14 +128,10 @@ class AllocatorConfig:
         0.25,
         "share of the joint acceleration limit (143 rad/s^2) commanded; the rest is servo "
         "headroom that keeps hip and knee in step [-]",
-        min_value=1e-3,
-        max_value=1.0,
+        bounds=FRACTION,
     )
     tether_acceleration_fraction: float = parameter_field(
-        0.9,
-        "share of the reel start-up acceleration limit (5 m/s^2) used [-]",
-        min_value=1e-3,
-        max_value=1.0,
+        0.9, "share of the reel start-up acceleration limit (5 m/s^2) used [-]", bounds=FRACTION
     )
     # The live ones are read on every tick; the speed and acceleration shares size the
     # limiters when the allocator is built (read-only).

@@ -74,8 +74,7 @@ class AllocatorTickSettings:
     initial_radii_m: tuple[float, ...] = parameter_field(  # [m]
         tuple(float(v) for v in PAPER_INITIAL_RADII_M),
         "r_x, r_y, r_z the commands start from when no measured inertia came first [m]",
-        min_value=0.0,
-        max_value=100.0,
+        bounds=(0.0, 100.0),
         length=3,
     )
     initialize_from_measured_inertia: bool = parameter_field(
@@ -87,11 +86,7 @@ class AllocatorTickSettings:
         "from the last good setpoint (lockstep keeps running)",
     )
     diagnostics_period_s: float = parameter_field(  # [s]
-        0.1,
-        "diagnostics period in simulated time [s]",
-        min_value=1e-3,
-        max_value=100.0,
-        live=True,
+        0.1, "diagnostics period in simulated time [s]", bounds=(1e-3, 100.0), live=True
     )
 
 

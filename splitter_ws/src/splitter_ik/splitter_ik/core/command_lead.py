@@ -51,22 +51,19 @@ class CommandLeadConfig:
         "real time: commands are stamped ahead of their input by the largest latency "
         "measured plus this margin for their way to the simulator, in whole control "
         "periods (lockstep: latency 0, no lead) [s]",
-        min_value=0.0,
-        max_value=1.0,
+        bounds=(0.0, 1.0),
         live=True,
     )
     command_lead_window_s: float = parameter_field(  # [s]
         2.0,
         "the command lead plans for the largest input latency of this much simulated time [s]",
-        min_value=0.0,
-        max_value=100.0,
+        bounds=(0.0, 100.0),
         live=True,
     )
     command_lead_max_s: float = parameter_field(  # [s]
         0.5,
         "longest command lead: a larger latency is followed late, not planned for [s]",
-        min_value=0.0,
-        max_value=5.0,
+        bounds=(0.0, 5.0),
         live=True,
     )
 

@@ -38,7 +38,7 @@ from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import Closable, close_part
-from splitter_msgs_py.core.parameter_fields import parameter_field
+from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field
 
 _LOG = logging.getLogger(__name__)
 # Inactive phases: on the ground (LAUNCH, JUMP) the limbs are legs and stand in the
@@ -57,10 +57,10 @@ class ControllerConfig:
     weights: MpcWeights = field(default_factory=MpcWeights)
     mpc: MpcSettings = field(default_factory=MpcSettings)
     replan_period_s: float = parameter_field(  # [s]
-        0.1, "re-plan period [s]", min_value=0.001, max_value=10.0
+        0.1, "re-plan period [s]", bounds=PERIOD_S
     )
     control_period_s: float = parameter_field(  # [s]
-        0.01, "setpoint period [s]", min_value=0.001, max_value=1.0
+        0.01, "setpoint period [s]", bounds=(0.001, 1.0)
     )
     nominal_inertia_kg_m2: tuple[float, float, float] | None = None  # held when inactive
     # Recovery (supervisory): while the body rate across the reference axis is above
@@ -73,8 +73,7 @@ class ControllerConfig:
         0.0,
         "supervisory recovery: while the body turns across the reference axis, ask the MPC "
         "for at least this spin about it [rad/s] (0: off)",
-        min_value=0.0,
-        max_value=100.0,
+        bounds=(0.0, 100.0),
         live=True,
     )
     recovery_enter_rate_rad_s: float = 0.05  # [rad/s]
@@ -90,8 +89,7 @@ class ControllerConfig:
         "recovery only for a tumble whose slowest spin about the reference axis, |H| / "
         "I_max, is under this multiple of |w_ref| [-] (1: the reference spin is reachable; "
         "1e9: any tumble)",
-        min_value=1.0e-3,
-        max_value=1.0e9,
+        bounds=(1.0e-3, 1.0e9),
         live=True,
     )
 

@@ -418,42 +418,22 @@ class GaitConfig:
 
     jumps: tuple[PlannedJump, ...] = ()
     stance_force_threshold_n: float = parameter_field(
-        2.0,
-        "contact normal force above which a hemi is in stance [N]",
-        min_value=1e-3,
-        max_value=1e4,
-        live=True,
+        2.0, "normal force above which a hemi is in stance [N]", bounds=(1e-3, 1e4), live=True
     )
     touchdown_debounce_s: float = parameter_field(
-        0.05,
-        "stance without a break for at least this long means touchdown [s]",
-        min_value=0.0,
-        max_value=1.0,
-        live=True,
+        0.05, "stance this long without a break means touchdown [s]", bounds=(0.0, 1.0), live=True
     )
     liftoff_debounce_s: float = parameter_field(
-        0.15,
-        "no stance for longer than this means lift-off [s]",
-        min_value=0.0,
-        max_value=1.0,
-        live=True,
+        0.15, "no stance for longer than this means lift-off [s]", bounds=(0.0, 1.0), live=True
     )
     landed_speed_m_s: float = parameter_field(
-        0.05,
-        "centre-of-mass speed below which the robot is at rest [m/s]",
-        min_value=1e-4,
-        max_value=10.0,
-        live=True,
+        0.05, "COM speed below which the robot is at rest [m/s]", bounds=(1e-4, 10.0), live=True
     )
     landed_angular_speed_rad_s: float = parameter_field(
-        0.05,
-        "angular speed below which the robot is at rest [rad/s]",
-        min_value=1e-4,
-        max_value=10.0,
-        live=True,
+        0.05, "body rate below which the robot is at rest [rad/s]", bounds=(1e-4, 10.0), live=True
     )
     landed_dwell_s: float = parameter_field(
-        1.0, "time at rest in stance before LANDED [s]", min_value=0.0, max_value=60.0, live=True
+        1.0, "time at rest in stance before LANDED [s]", bounds=(0.0, 60.0), live=True
     )
     w_ref_rad_s: tuple[float, float, float] = parameter_field(
         (0.0, 1.0, 0.0), "flight angular velocity reference, base frame [rad/s]", length=3

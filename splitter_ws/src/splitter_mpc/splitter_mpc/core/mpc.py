@@ -124,7 +124,7 @@ from splitter_mpc.core.solvers import (
     close_part,
     make_backend,
 )
-from splitter_msgs_py.core.parameter_fields import parameter_field
+from splitter_msgs_py.core.parameter_fields import FRACTION, parameter_field
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -142,9 +142,9 @@ class MpcSettings:
     (:func:`settings_for_weights` decides; without q a solve is ~30 % faster).
     """
 
-    horizon: int = parameter_field(50, "prediction horizon N [steps]", min_value=2, max_value=1000)
+    horizon: int = parameter_field(50, "prediction horizon N [steps]", bounds=(2, 1000))
     dt_s: float = parameter_field(  # [s] prediction step
-        0.01, "prediction step [s] (whole milliseconds)", min_value=0.001, max_value=1.0
+        0.01, "prediction step [s] (whole milliseconds)", bounds=(0.001, 1.0)
     )
     integrator: str = parameter_field(
         "euler", "prediction model integrator (euler: the paper's)", choices=INTEGRATORS
@@ -152,10 +152,10 @@ class MpcSettings:
     solver: str = parameter_field("fatrop", "optimisation back-end", choices=SOLVERS)
     options: SolverOptions = field(default_factory=SolverOptions)
     tension_min_n: float = parameter_field(  # [N] taut-tether margin (soft)
-        1.0, "taut-tether margin [N]", min_value=0.0, max_value=1e4
+        1.0, "taut-tether margin [N]", bounds=(0.0, 1e4)
     )
     radius_rate_scale: float = parameter_field(  # share of the actuator radius speeds
-        1.0, "share of the actuator radius speeds planned", min_value=1e-3, max_value=1.0
+        1.0, "share of the actuator radius speeds planned", bounds=FRACTION
     )
     attitude_states: bool = True
     # [s] the prediction step the weights are given for (None or 0: per stage, read as
@@ -164,8 +164,7 @@ class MpcSettings:
         0.0,
         "prediction step the weights are given for [s] (0: per stage); the stage weights "
         "then keep one continuous-time cost",
-        min_value=0.0,
-        max_value=1.0,
+        bounds=(0.0, 1.0),
     )
 
     def __post_init__(self) -> None:

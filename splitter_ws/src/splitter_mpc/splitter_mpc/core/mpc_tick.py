@@ -45,7 +45,7 @@ from splitter_mpc.core.solvers import SolverOptions
 from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
-from splitter_msgs_py.core.parameter_fields import parameter_field, parameter_fields
+from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field, parameter_fields
 from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 
 MAX_RATE_RAD_S = 100.0  # [rad/s] a body rate or rate reference component beyond it is corrupt
@@ -62,8 +62,8 @@ class MpcTickSettings:
         "allocator stamps them ahead by the latency), with the body rate momentum gives "
         "there, not from the inertia measured now, which lags them",
     )
-    diagnostics_period_s: float = parameter_field(  # [s]
-        0.1, "diagnostics period, simulated time [s]", min_value=0.001, max_value=10.0, live=True
+    diagnostics_period_s: float = parameter_field(
+        0.1, "diagnostics period, simulated time [s]", bounds=PERIOD_S, live=True
     )
 
     @property

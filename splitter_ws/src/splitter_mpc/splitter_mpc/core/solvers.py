@@ -90,12 +90,11 @@ class SolverOptions:
     name where it differs).
     """
 
-    max_iter: int = parameter_field(30, "iteration cap per solve", min_value=1, max_value=10000)
+    max_iter: int = parameter_field(30, "iteration cap per solve", bounds=(1, 10000))
     max_time_s: float = parameter_field(  # [s] real time: a late plan is dropped
         0.08,
         "wall-time deadline per solve [s]; a missed one executes the previous plan",
-        min_value=1e-3,
-        max_value=60.0,
+        bounds=(1e-3, 60.0),
     )
     # Run the back-end in a worker process that is killed at max_time_s
     # (:mod:`.solver_worker`): the only bound that holds when a native solve freezes.
@@ -112,9 +111,7 @@ class SolverOptions:
         "(lockstep, deterministic); false counts its start against the deadline (real time)",
     )
     # optimality of the scaled problem (interior point) / step size (SQP)
-    tol: float = parameter_field(
-        1e-6, "solver tolerance (scaled problem)", min_value=1e-14, max_value=1e-2
-    )
+    tol: float = parameter_field(1e-6, "solver tolerance (scaled problem)", bounds=(1e-14, 1e-2))
     usable_infeasibility: float = 1e-4  # largest constraint violation of an executable plan
     # sqp/rti iterates carry the linearisation error of the dynamics (RTI's premise):
     rti_usable_infeasibility: float = 1e-2

@@ -26,22 +26,17 @@ class SimulatorSettings:
 
     mode: str = parameter_field("lockstep", "stepping mode", choices=MODES)
     rate_factor: float = parameter_field(
-        1.0,
-        "real_time mode: simulated seconds per wall second [-]",
-        min_value=1e-3,
-        max_value=1e4,
+        1.0, "real_time mode: simulated seconds per wall second [-]", bounds=(1e-3, 1e4)
     )
     lockstep_timeout_s: float = parameter_field(
         5.0,
-        "lockstep: longest wall wait for the commands of a tick before stepping on [s]",
-        min_value=1e-3,
-        max_value=3600.0,
+        "lockstep: longest wall wait for a tick's commands before stepping on [s]",
+        bounds=(1e-3, 3600.0),
     )
     startup_wait_s: float = parameter_field(
         3.0,
         "longest wall wait at start for state subscribers (and, lockstep, command publishers) [s]",
-        min_value=0.0,
-        max_value=600.0,
+        bounds=(0.0, 600.0),
     )
     startup_wait_for_nodes: tuple[str, ...] = parameter_field(
         (),
@@ -57,8 +52,7 @@ class SimulatorSettings:
         0.0,
         "the start condition must hold this long before stepping: time for the other nodes' "
         "endpoints to match each other, which this node cannot see [s]",
-        min_value=0.0,
-        max_value=60.0,
+        bounds=(0.0, 60.0),
     )
     startup_wait_for_subscribers: tuple[str, ...] = parameter_field(
         (),
@@ -66,34 +60,21 @@ class SimulatorSettings:
         item_type=str,
     )
     duration_s: float = parameter_field(
-        0.0,
-        "simulated time after which the node stops stepping (0: never) [s]",
-        min_value=0.0,
-        max_value=1e7,
+        0.0, "simulated time after which the node stops stepping (0: never) [s]", bounds=(0.0, 1e7)
     )
     control_period_s: float = parameter_field(
-        0.01,
-        "lockstep tick period, a multiple of dt_s [s]",
-        min_value=1e-4,
-        max_value=10.0,
+        0.01, "lockstep tick period, a multiple of dt_s [s]", bounds=(1e-4, 10.0)
     )
     markers_period_s: float = parameter_field(
         0.04,
-        "markers and scene period in simulated time, a multiple of dt_s [s]",
-        min_value=1e-4,
-        max_value=100.0,
+        "markers and scene period, simulated time, a multiple of dt_s [s]",
+        bounds=(1e-4, 100.0),
     )
     diagnostics_period_s: float = parameter_field(
-        0.1,
-        "diagnostics period in simulated time, a multiple of dt_s [s]",
-        min_value=1e-4,
-        max_value=100.0,
+        0.1, "diagnostics period, simulated time, a multiple of dt_s [s]", bounds=(1e-4, 100.0)
     )
     progress_period_s: float = parameter_field(
-        1.0,
-        "period in simulated time of the 't = ... s' progress log line [s]",
-        min_value=1e-3,
-        max_value=1e6,
+        1.0, "period of the 't = ... s' progress log line, simulated time [s]", bounds=(1e-3, 1e6)
     )
     initial_position_m: tuple[float, ...] = parameter_field(
         (0.0, 0.0, 10.0), "centre of mass, world [m]", length=3

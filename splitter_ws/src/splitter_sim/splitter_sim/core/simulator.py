@@ -96,65 +96,47 @@ class SimConfig:
     ground, the limb length the paper sizes the push-off with (section IV).
     """
 
-    dt_s: float = parameter_field(
-        0.005, "simulation step [s] (paper Table I)", min_value=1e-4, max_value=0.05
-    )
+    dt_s: float = parameter_field(0.005, "simulation step [s] (paper Table I)", bounds=(1e-4, 0.05))
     gravity_m_s2: float = 0.0  # [m/s^2] magnitude, along -z world (the node's ``gravity``)
     ground_contact: bool = parameter_field(True, "spring-damper ground plane at z = 0")
     contact_stiffness_n_m: float = parameter_field(
-        5.0e4, "ground stiffness per lumped mass [N/m]", min_value=1.0, max_value=1e8
+        5.0e4, "ground stiffness per lumped mass [N/m]", bounds=(1.0, 1e8)
     )
     contact_damping_n_s_m: float = parameter_field(
-        1.0e3, "ground damping per lumped mass [N s/m]", min_value=0.0, max_value=1e6
+        1.0e3, "ground damping per lumped mass [N s/m]", bounds=(0.0, 1e6)
     )
     friction_coefficient: float = parameter_field(
-        0.8, "Coulomb friction coefficient mu [-]", min_value=0.0, max_value=10.0
+        0.8, "Coulomb friction coefficient mu [-]", bounds=(0.0, 10.0)
     )
     friction_damping_n_s_m: float = parameter_field(
-        1.0e3,
-        "slope of the regularised friction law below the cone [N s/m]",
-        min_value=1e-3,
-        max_value=1e6,
+        1.0e3, "slope of the regularised friction law below the cone [N s/m]", bounds=(1e-3, 1e6)
     )
     contact_substeps: int = parameter_field(
-        2,
-        "RK4 sub-steps per step while a mass can touch the ground [-]",
-        min_value=1,
-        max_value=100,
+        2, "RK4 sub-steps per step while a mass can touch the ground [-]", bounds=(1, 100)
     )
-    thrust_stroke_m: float = parameter_field(
-        0.4,  # the paper's 0.4 m limb
-        "leg push-off stroke: a hemi pushes while within this height of the ground [m]",
-        min_value=0.0,
-        max_value=10.0,
+    thrust_stroke_m: float = parameter_field(  # the paper's 0.4 m limb
+        0.4,
+        "push-off stroke: a hemi pushes while within this height of the ground [m]",
+        bounds=(0.0, 10.0),
     )
     # Compliant legs (splitter_sim.core.legs): off, the lumped masses touch the ground directly.
+    # The defaults: a lunar hemi (14.6 N) stands crouched, 4 cm up; 0.95 m/s down saturates
+    # the force cap; the hip impedance holds the feet planted; the cap is below the limbs'
+    # 196 N dynamic limit (paper VII.C).
     compliant_legs: bool = parameter_field(
         False, "stance legs under impedance control over the stroke (splitter_sim.core.legs)"
     )
     leg_stiffness_n_m: float = parameter_field(
-        40.0,  # a lunar hemi (14.6 N) stands crouched, 4 cm up
-        "stiffness of a hemi's legs in stance [N/m]",
-        min_value=0.0,
-        max_value=1e6,
+        40.0, "stiffness of a hemi's legs in stance [N/m]", bounds=(0.0, 1e6)
     )
     leg_damping_n_s_m: float = parameter_field(
-        200.0,  # 0.95 m/s down saturates the force cap
-        "vertical damping of a hemi's legs in stance [N s/m]",
-        min_value=0.0,
-        max_value=1e6,
+        200.0, "vertical damping of a hemi's legs in stance [N s/m]", bounds=(0.0, 1e6)
     )
     leg_tangential_damping_n_s_m: float = parameter_field(
-        20.0,  # hip impedance, feet planted
-        "horizontal damping of a hemi's legs in stance (feet planted) [N s/m]",
-        min_value=0.0,
-        max_value=1e6,
+        20.0, "horizontal damping of a hemi's planted legs in stance [N s/m]", bounds=(0.0, 1e6)
     )
     leg_force_max_n: float = parameter_field(
-        190.0,  # below the limbs' 196 N dynamic limit (paper VII.C)
-        "largest stance force of a hemi's legs (limbs' dynamic limit) [N]",
-        min_value=1e-3,
-        max_value=1e5,
+        190.0, "largest stance force of a hemi's legs (the limbs' limit) [N]", bounds=(1e-3, 1e5)
     )
     # Lockstep: a point every control period. Real time: long enough for a late point
     # (actuators.command_target).
@@ -162,16 +144,14 @@ class SimConfig:
         actuators.COMMAND_EXTRAPOLATION_S,
         "a joint command's velocity is followed this long past its stamp when no newer "
         "point arrives, then its position is held (real time: cover a late point) [s]",
-        min_value=0.0,
-        max_value=10.0,
+        bounds=(0.0, 10.0),
     )
     # Real time: the servos then see a reference with continuous velocity.
     knot_blend_s: float = parameter_field(
         0.0,
         "a corner of the joint trajectory whose next point is queued ahead (real time) "
         "is rounded by a parabolic blend this long (0: off) [s]",
-        min_value=0.0,
-        max_value=1.0,
+        bounds=(0.0, 1.0),
     )
 
     def __post_init__(self) -> None:
