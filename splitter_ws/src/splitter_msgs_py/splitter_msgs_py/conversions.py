@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import importlib
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -36,6 +37,7 @@ from splitter_msgs_py.core.stamps import MessageValidationError
 
 QUATERNION_NORM_TOLERANCE = 1e-3  # accepted |1 - |q|| before a quaternion is rejected
 _NS_PER_S = 1_000_000_000
+_Msg = TypeVar("_Msg")  # a ROS message type with a std_msgs/Header
 
 
 # --- validation helpers ----------------------------------------------------------
@@ -99,6 +101,14 @@ def stamp_from_msg(msg: Time) -> int:
     return int(msg.sec) * _NS_PER_S + int(msg.nanosec)
 
 
+def _stamped(msg_type: Callable[[], _Msg], t_ns: int, frame_id: str = "") -> _Msg:
+    """A new ``msg_type`` message whose header says ``t_ns`` and ``frame_id``."""
+    msg = msg_type()
+    msg.header.stamp = stamp_to_msg(t_ns)  # type: ignore[attr-defined]
+    msg.header.frame_id = frame_id  # type: ignore[attr-defined]
+    return msg
+
+
 def checked_stamp_from_msg(msg: Time) -> int:
     """Integer nanoseconds of a Time that is >= 0 with ``nanosec`` < 1e9.
 
@@ -137,9 +147,7 @@ def imu_to_msg(
     frame_id: str = names.BASE_FRAME,
 ) -> Imu:
     """sensor_msgs/Imu (covariances unknown: zero, as REP 145 allows for simulation)."""
-    msg = Imu()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = frame_id
+    msg = _stamped(Imu, t_ns, frame_id)
     _set_quaternion(msg.orientation, unit_quaternion(orientation_wxyz))
     _set_vector3(
         msg.angular_velocity, _finite_vector(angular_velocity_rad_s, 3, "angular_velocity")
@@ -185,9 +193,7 @@ def odom_to_msg(
     v_world = _finite_vector(velocity_world_m_s, 3, "velocity")
     with np.errstate(over="ignore", invalid="ignore"):  # checked just below
         v_base = _finite_vector(quaternion_to_matrix(q).T @ v_world, 3, "velocity (base frame)")
-    msg = Odometry()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = names.WORLD_FRAME
+    msg = _stamped(Odometry, t_ns, names.WORLD_FRAME)
     msg.child_frame_id = names.BASE_FRAME
     _set_vector3(msg.pose.pose.position, _finite_vector(position_m, 3, "position"))
     _set_quaternion(msg.pose.pose.orientation, q)
@@ -225,9 +231,7 @@ class Vector3Sample:
 
 def vector3_to_msg(t_ns: int, vec3: ArrayLike, frame_id: str = names.BASE_FRAME) -> Vector3Stamped:
     """geometry_msgs/Vector3Stamped."""
-    msg = Vector3Stamped()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = frame_id
+    msg = _stamped(Vector3Stamped, t_ns, frame_id)
     _set_vector3(msg.vector, _finite_vector(vec3, 3, "vector"))
     return msg
 
@@ -280,8 +284,7 @@ def joint_state_to_msg(
     effort: ArrayLike | None = None,
 ) -> JointState:
     """sensor_msgs/JointState with all 25 joints named as ``names.JOINT_NAMES``."""
-    msg = JointState()
-    msg.header.stamp = stamp_to_msg(t_ns)
+    msg = _stamped(JointState, t_ns)
     msg.name = list(names.JOINT_NAMES)
     msg.position = _finite_vector(position, names.N_JOINTS, "position").tolist()
     if velocity is not None:
@@ -352,9 +355,7 @@ def wrench_to_msg(
     frame_id: str = names.WORLD_FRAME,
 ) -> WrenchStamped:
     """geometry_msgs/WrenchStamped."""
-    msg = WrenchStamped()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = frame_id
+    msg = _stamped(WrenchStamped, t_ns, frame_id)
     _set_vector3(msg.wrench.force, _finite_vector(force_n, 3, "force"))
     _set_vector3(msg.wrench.torque, _finite_vector(torque_nm, 3, "torque"))
     return msg
@@ -375,9 +376,7 @@ def twist_to_msg(
     t_ns: int, angular_rad_s: ArrayLike, frame_id: str = names.BASE_FRAME
 ) -> TwistStamped:
     """geometry_msgs/TwistStamped carrying an angular velocity (linear part zero)."""
-    msg = TwistStamped()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = frame_id
+    msg = _stamped(TwistStamped, t_ns, frame_id)
     _set_vector3(msg.twist.angular, _finite_vector(angular_rad_s, 3, "twist.angular"))
     return msg
 
@@ -397,9 +396,7 @@ def pose_to_msg(
     frame_id: str = names.WORLD_FRAME,
 ) -> PoseStamped:
     """geometry_msgs/PoseStamped."""
-    msg = PoseStamped()
-    msg.header.stamp = stamp_to_msg(t_ns)
-    msg.header.frame_id = frame_id
+    msg = _stamped(PoseStamped, t_ns, frame_id)
     _set_vector3(msg.pose.position, _finite_vector(position_m, 3, "pose.position"))
     _set_quaternion(msg.pose.orientation, unit_quaternion(orientation_wxyz, "pose.orientation"))
     return msg
@@ -439,8 +436,7 @@ def _format_value(key: str, value: float | int | str | bool) -> str:
 
 def diagnostics_to_msg(t_ns: int, statuses: Sequence[DiagnosticStatusSample]) -> DiagnosticArray:
     """diagnostic_msgs/DiagnosticArray; numbers are written with full precision."""
-    msg = DiagnosticArray()
-    msg.header.stamp = stamp_to_msg(t_ns)
+    msg = _stamped(DiagnosticArray, t_ns)
     for sample in statuses:
         if sample.level not in (0, 1, 2, 3):
             raise MessageValidationError(f"diagnostics {sample.name}: level {sample.level}")
