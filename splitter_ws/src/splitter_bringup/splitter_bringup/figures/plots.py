@@ -19,21 +19,27 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from splitter_bringup.analysis.metrics import FindingResult
 from splitter_bringup.analysis.series import RunSeries
+from splitter_model.rotations import quaternion_to_matrix
 
 AXES = ("x", "y", "z")
 
 
-def save_figure(fig: Figure, path: Path, title: str = "") -> Path:
-    """Title, lay out and write ``fig`` as a PNG at ``path`` (folders made), then close it."""
-    fig.suptitle(title)
+def save_figure(fig: Figure, path: Path, title: str | None = "", *, dpi: int = 110) -> Path:
+    """Title, lay out and write ``fig`` as a PNG at ``path`` (folders made), then close it.
+
+    ``title`` None: no title line at all (an empty title still takes its room).
+    """
+    if title is not None:
+        fig.suptitle(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 
@@ -56,30 +62,34 @@ def _canonical_sign(q: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
+def _plot_columns(
+    ax: Axes,
+    t: NDArray[np.float64],
+    values: NDArray[np.float64],
+    labels: Sequence[str],
+    ylabel: str,
+) -> None:
+    """One line per column of ``values`` over ``t``, labelled, with legend and grid."""
+    for i, label in enumerate(labels):
+        ax.plot(t, values[:, i], label=label)
+    ax.set_ylabel(ylabel)
+    ax.legend(loc="best")
+    ax.grid(True, alpha=0.3)
+
+
 def plot_flight(series: RunSeries, path: Path, title: str = "") -> Path:
     """Angular velocity, radii, inertia vs setpoint and Euler angles, one PNG."""
     t = series.t_s
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True)
-    ax = axes[0, 0]
-    for i, name in enumerate(AXES):
-        ax.plot(t, series.angular_velocity_rad_s[:, i], label=f"$\\omega_{name}$")
-    ax.set_ylabel("angular velocity [rad/s]")
-    ax.legend(loc="best")
-    ax.grid(True, alpha=0.3)
-    ax = axes[0, 1]
-    for i, name in enumerate(AXES):
-        ax.plot(t, series.radii_m[:, i], label=f"$r_{name}$")
-    ax.set_ylabel("radius [m]")
-    ax.legend(loc="best")
-    ax.grid(True, alpha=0.3)
-    ax = axes[1, 0]
+    omega_labels = [f"$\\omega_{name}$" for name in AXES]
+    _plot_columns(
+        axes[0, 0], t, series.angular_velocity_rad_s, omega_labels, "angular velocity [rad/s]"
+    )
+    radius_labels = [f"$r_{name}$" for name in AXES]
+    _plot_columns(axes[0, 1], t, series.radii_m, radius_labels, "radius [m]")
     euler = euler_xyz_deg(series.orientation_wxyz)
-    for i, name in enumerate(("roll", "pitch", "yaw")):
-        ax.plot(t, euler[:, i], label=name)
-    ax.set_ylabel("Euler angles xyz [deg]")
-    ax.set_xlabel("t [s]")
-    ax.legend(loc="best")
-    ax.grid(True, alpha=0.3)
+    _plot_columns(axes[1, 0], t, euler, ("roll", "pitch", "yaw"), "Euler angles xyz [deg]")
+    axes[1, 0].set_xlabel("t [s]")
     ax = axes[1, 1]
     nominal = series.principal_inertia_kg_m2[0]
     for i, name in enumerate(("xx", "yy", "zz")):
@@ -105,17 +115,12 @@ def plot_quaternion_map(series: RunSeries, path: Path, title: str = "") -> Path:
     """The quaternion components over time, and the path of the body y axis in the world."""
     q = _canonical_sign(series.orientation_wxyz)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    ax = axes[0]
-    for i, name in enumerate(("w", "x", "y", "z")):
-        ax.plot(series.t_s, q[:, i], label=f"$q_{name}$")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("quaternion (world <- base)")
-    ax.legend(loc="best")
-    ax.grid(True, alpha=0.3)
+    quaternion_labels = [f"$q_{name}$" for name in "wxyz"]
+    _plot_columns(axes[0], series.t_s, q, quaternion_labels, "quaternion (world <- base)")
+    axes[0].set_xlabel("t [s]")
     ax = axes[1]
-    w, x, y, z = q.T
     # body y axis in the world frame: second column of the rotation matrix
-    y_axis = np.stack([2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)], axis=1)
+    y_axis = np.array([quaternion_to_matrix(q_k)[:, 1] for q_k in q])
     sc = ax.scatter(y_axis[:, 0], y_axis[:, 2], c=series.t_s, s=3, cmap="viridis")
     ax.set_xlabel("body y axis, world x")
     ax.set_ylabel("body y axis, world z")
