@@ -14,6 +14,9 @@ from numpy.typing import ArrayLike
 
 from splitter_bringup.analysis.actuator_sizing import SizingReport
 from splitter_bringup.analysis.run_check import LimitCheck
+from splitter_bringup.figures.plots import save_figure
+
+FIGURE_DPI = 120  # [dots per inch]
 
 
 def plot_sizing(report: SizingReport, path: Path) -> Path:
@@ -41,10 +44,7 @@ def plot_sizing(report: SizingReport, path: Path) -> Path:
     ax_cap.set_ylabel("fraction of the geared motor's peak [-]")
     ax_cap.set_title("TBM2G-07613A, 10:1")
     ax_cap.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, None, dpi=FIGURE_DPI)
 
 
 def plot_run_check(
@@ -66,7 +66,4 @@ def plot_run_check(
     ax_t.set_ylabel("tether speed [m/s]")
     ax_t.set_xlabel("t [s]")
     ax_t.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, None, dpi=FIGURE_DPI)
