@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -15,7 +13,6 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -40,6 +37,7 @@ from splitter_msgs_py.conversions import (
 )
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+from splitter_msgs_py.testing import spin_until, spun_together
 
 MS = 1_000_000  # [ns]
 TETHER_M = 2.8  # [m] distance between the hemi bodies: r_x = 1.4 m
@@ -139,27 +137,13 @@ class FakeSimulator:
         self.odom.publish(odom)
 
 
-def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeout_s=5.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not done():
-        assert time.monotonic() < deadline, "timed out waiting for the gait manager"
-        executor.spin_once(timeout_sec=0.01)
-
-
 @contextmanager
 def gait_graph(ros_context, overrides=PLAN):
     """The gait manager (``overrides``), a scripted simulator and one executor for both."""
     manager = GaitPhaseManagerNode(context=ros_context, parameter_overrides=overrides)
     sim = FakeSimulator(ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(manager)
-    executor.add_node(sim.node)
-    try:
+    with spun_together(ros_context, manager, sim.node) as executor:
         yield manager, sim, executor
-    finally:
-        executor.shutdown()
-        manager.destroy_node()
-        sim.node.destroy_node()
 
 
 @pytest.fixture

@@ -17,12 +17,11 @@ import math
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import Vector3Stamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
 
 from splitter_model.actuators import TETHER_INDEX
 from splitter_mpc.core.gait import GaitPhase
@@ -46,7 +45,9 @@ from splitter_msgs_py.testing import (
     ANY_VECTOR3,
     FLOAT_LIST,
     assert_finite,
+    joint_state_msg,
     node_under_test,
+    wrench_msg,
 )
 
 # An overflow inside a callback means an implausible number got past validation.
@@ -148,24 +149,6 @@ def odom_msg(stamp: Time, content: tuple) -> Odometry:
     v, w = msg.twist.twist.linear, msg.twist.twist.angular
     v.x, v.y, v.z = (float(c) for c in velocity)
     w.x, w.y, w.z = (float(c) for c in rate)
-    return msg
-
-
-def wrench_msg(stamp: Time, frame: str, force, torque) -> WrenchStamped:
-    msg = WrenchStamped()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame
-    f, tau = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z = (float(v) for v in force)
-    tau.x, tau.y, tau.z = (float(v) for v in torque)
-    return msg
-
-
-def joints_msg(stamp: Time, joint_names, position) -> JointState:
-    msg = JointState()
-    msg.header.stamp = stamp
-    msg.name = list(joint_names)
-    msg.position = [float(v) for v in position]
     return msg
 
 
@@ -291,7 +274,7 @@ def test_input_callbacks_survive_any_message(make_node, steps) -> None:
             elif kind == "contact":
                 node._on_input(topic, wrench_msg(stamp, *content[1:]))
             elif kind == names.JOINT_STATES:
-                node._on_input(names.JOINT_STATES, joints_msg(stamp, *content))
+                node._on_input(names.JOINT_STATES, joint_state_msg(stamp, *content))
             else:
                 node._on_input(names.INERTIA, vector3_msg(stamp, *content))
             rejected = rejections(node) > rejected_before

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +11,6 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
@@ -33,6 +30,7 @@ from splitter_msgs_py.conversions import (
 )
 from splitter_msgs_py.parameters import InvalidParameterError, rejection_counts
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
+from splitter_msgs_py.testing import spin_for, spin_until, spun_together
 
 MS = 1_000_000  # [ns]
 I0 = principal_inertia(RobotModel(), PAPER_INITIAL_RADII_M)
@@ -83,32 +81,12 @@ class FakeGraph:
         return [stamp_from_msg(m.header.stamp) // MS for m in self.setpoints]
 
 
-def spin_until(executor, done: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not done():
-        assert time.monotonic() < deadline, "timed out waiting for the MPC node"
-        executor.spin_once(timeout_sec=0.01)
-
-
-def spin_for(executor, seconds: float) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.01)
-
-
 @pytest.fixture
 def graph(ros_context):
     mpc = InertialMorphingMpcNode(context=ros_context, parameter_overrides=FAST)
     fake = FakeGraph(ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(mpc)
-    executor.add_node(fake.node)
-    try:
+    with spun_together(ros_context, mpc, fake.node) as executor:
         yield mpc, fake, executor
-    finally:
-        executor.shutdown()
-        mpc.destroy_node()
-        fake.node.destroy_node()
 
 
 def tick(fake: FakeGraph, executor, t_ms: int, **state) -> None:

@@ -10,7 +10,12 @@ published:
   and any string a DDS message can carry;
 * :func:`node_under_test`: the node built with parameters in a test's context and
   destroyed after the example;
-* :func:`assert_finite`: no NaN or infinity anywhere in a message.
+* :func:`assert_finite`: no NaN or infinity anywhere in a message;
+* :func:`wrench_msg`, :func:`joint_state_msg`: messages of any content and stamp,
+  built field by field (the conversions refuse what these tests send).
+
+The in-process graph tests (``test_*_node.py``) spin the node under test with the
+fake nodes around it: :func:`spun_together`, :func:`spin_until`, :func:`spin_for`.
 
 For tests only (imports hypothesis).
 """
@@ -18,13 +23,18 @@ For tests only (imports hypothesis).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Sequence
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TypeVar
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
 from hypothesis import strategies as st
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
 
 from splitter_msgs_py.inspection import non_finite_fields
 
@@ -74,3 +84,62 @@ def node_under_test(
 def assert_finite(msg: object, path: str = "msg") -> None:
     """No NaN or infinity anywhere in a message (numeric diagnostics values included)."""
     assert non_finite_fields(msg, path) == []
+
+
+def wrench_msg(stamp: Time, frame: str, force: Iterable, torque: Iterable) -> WrenchStamped:
+    """A wrench of any content (each component as a float, unchecked)."""
+    msg = WrenchStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame
+    f, tau = msg.wrench.force, msg.wrench.torque
+    f.x, f.y, f.z = (float(v) for v in force)
+    tau.x, tau.y, tau.z = (float(v) for v in torque)
+    return msg
+
+
+def joint_state_msg(
+    stamp: Time,
+    joint_names: Iterable[str],
+    position: Iterable,
+    velocity: Iterable = (),
+    effort: Iterable = (),
+) -> JointState:
+    """A joint state of any content and length (floats, unchecked; no velocity, effort)."""
+    msg = JointState()
+    msg.header.stamp = stamp
+    msg.name = list(joint_names)
+    msg.position = [float(v) for v in position]
+    msg.velocity = [float(v) for v in velocity]
+    msg.effort = [float(v) for v in effort]
+    return msg
+
+
+@contextmanager
+def spun_together(context: object, *nodes: Node) -> Iterator[SingleThreadedExecutor]:
+    """One executor in ``context`` for ``nodes``; on exit it shuts down and they are destroyed."""
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        yield executor
+    finally:
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+
+
+def spin_until(
+    executor: Executor, done: Callable[[], bool], timeout_s: float = 10.0, what: str = ""
+) -> None:
+    """Spin ``executor`` until ``done()``; a test failure after ``timeout_s`` [s] of wall time."""
+    deadline = time.monotonic() + timeout_s
+    while not done():
+        assert time.monotonic() < deadline, f"timed out ({timeout_s} s) waiting for {what or done}"
+        executor.spin_once(timeout_sec=0.01)
+
+
+def spin_for(executor: Executor, seconds: float) -> None:
+    """Spin ``executor`` for ``seconds`` of wall time."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)

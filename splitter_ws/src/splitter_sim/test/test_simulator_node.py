@@ -21,23 +21,22 @@ from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
 from splitter_msgs_py.parameters import InvalidParameterError
 from splitter_msgs_py.qos import qos_for
+from splitter_msgs_py.testing import spin_until
 from splitter_sim.core.stepping import pushing_hemi
 from splitter_sim.messages import masses_from_msg
 from splitter_sim.simulator_node import SimulatorNode
 
 DT_NS = 5_000_000
-PUBLISHED = (
+TIMEOUT_S = 20.0  # [s] of wall time for a short run (a loaded machine is slow)
+EVERY_STEP = (  # published at every step
     names.CLOCK,
     names.IMU,
     names.ODOM,
     names.INERTIA,
     names.JOINT_STATES,
-    names.CONTACT_WRENCH_A,
-    names.CONTACT_WRENCH_B,
-    names.MARKERS,
-    names.SCENE_MASSES,
-    names.DIAGNOSTICS,
+    *names.CONTACT_WRENCHES,
 )
+PUBLISHED = (*EVERY_STEP, names.MARKERS, names.SCENE_MASSES, names.DIAGNOSTICS)
 
 
 class Probe(Node):
@@ -80,13 +79,6 @@ def _simulator(context, **parameters) -> SimulatorNode:
     return SimulatorNode(context=context, parameter_overrides=overrides)
 
 
-def _spin(executor: SingleThreadedExecutor, until, timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not until():
-        assert time.monotonic() < deadline, "timed out"
-        executor.spin_once(timeout_sec=0.01)
-
-
 def _drain(executor: SingleThreadedExecutor, probe: Probe, quiet_s: float = 0.3) -> None:
     """Spin until the probe has received nothing new for ``quiet_s`` (a loaded machine is slow)."""
     deadline = time.monotonic() + 20.0
@@ -120,18 +112,10 @@ def test_publishes_every_topic_stamped_on_its_grid(graph) -> None:
     context, executor, add = graph
     probe = add(Probe(context=context))
     sim = add(_simulator(context))
-    _spin(executor, sim.finished.done)
+    spin_until(executor, sim.finished.done, TIMEOUT_S)
     _drain(executor, probe)  # deliver the last messages
     steps = list(range(0, 100_000_001, DT_NS))
-    for topic in (
-        names.CLOCK,
-        names.IMU,
-        names.ODOM,
-        names.INERTIA,
-        names.JOINT_STATES,
-        names.CONTACT_WRENCH_A,
-        names.CONTACT_WRENCH_B,
-    ):
+    for topic in EVERY_STEP:
         assert probe.stamps(topic) == steps, topic
     assert probe.stamps(names.MARKERS) == [0, 40_000_000, 80_000_000]
     assert probe.stamps(names.SCENE_MASSES) == [0, 40_000_000, 80_000_000]
@@ -195,7 +179,7 @@ def test_lockstep_waits_for_the_tick_command_and_times_out_with_a_reason(graph) 
     controller = add(Controller(skip_tick_ns=50_000_000, context=context))
     sim = add(_simulator(context, duration_s=0.1, lockstep_timeout_s=0.4))
     start = time.monotonic()
-    _spin(executor, sim.finished.done)
+    spin_until(executor, sim.finished.done, TIMEOUT_S)
     wall = time.monotonic() - start
     _drain(executor, probe)
     # Every tick but the skipped one answered; the skipped one cost one timeout.
@@ -212,7 +196,7 @@ def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(gra
     probe = add(Probe(commands=True, context=context))
     # real time at half speed: 0.6 s of wall time for the commands to arrive, even when loaded
     sim = add(_simulator(context, duration_s=0.3, mode="real_time", rate_factor=0.5))
-    _spin(executor, lambda: len(probe.messages[names.CLOCK]) > 2)
+    spin_until(executor, lambda: len(probe.messages[names.CLOCK]) > 2, TIMEOUT_S)
     good = joint_positions_from_radii(RobotModel(), (2.7, 0.25, 0.18))
     bad_names = conv.joint_state_to_msg(0, good)
     bad_names.name[0] = "hemi_c_y_pos_hip_abduction"
@@ -227,7 +211,7 @@ def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(gra
     jump = conv.wrench_to_msg(0, (0.0, 0.0, 10.0))
     jump.wrench.force.z = math.inf
     probe.jump_pub.publish(jump)
-    _spin(executor, sim.finished.done)
+    spin_until(executor, sim.finished.done, TIMEOUT_S)
     _drain(executor, probe)
     final = probe.diagnostics()[-1]
     assert final["rejected_joint_commands"] == 3
@@ -266,7 +250,7 @@ def test_an_invalid_parameter_stops_start_up_naming_it(ros_context, name, value)
 def test_jump_command_torque_selects_the_pushing_hemi(graph) -> None:
     context, executor, add = graph
     sim = add(_simulator(context, duration_s=0.01, gravity="moon"))
-    _spin(executor, sim.finished.done)
+    spin_until(executor, sim.finished.done, TIMEOUT_S)
     state = sim.tick.last_published
     assert state is not None
     force = np.array([40.0, 0.0, 40.0])

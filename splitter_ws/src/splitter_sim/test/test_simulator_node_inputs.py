@@ -16,7 +16,6 @@ import functools
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import WrenchStamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from sensor_msgs.msg import JointState
@@ -32,7 +31,9 @@ from splitter_msgs_py.testing import (
     ANY_VECTOR3,
     FLOAT_LIST,
     assert_finite,
+    joint_state_msg,
     node_under_test,
+    wrench_msg,
 )
 from splitter_sim.core.stepping import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM
 from splitter_sim.simulator_node import SimulatorNode
@@ -113,26 +114,6 @@ def make_stamp(spec: tuple, now_ns: int) -> Time:
     return Time(sec=min(t // NS_PER_S, 2**31 - 1), nanosec=t % NS_PER_S)
 
 
-def joint_msg(stamp: Time, joint_names, position, velocity, effort) -> JointState:
-    msg = JointState()
-    msg.header.stamp = stamp
-    msg.name = list(joint_names)
-    msg.position = [float(v) for v in position]
-    msg.velocity = [float(v) for v in velocity]
-    msg.effort = [float(v) for v in effort]
-    return msg
-
-
-def jump_msg(stamp: Time, frame: str, force, torque) -> WrenchStamped:
-    msg = WrenchStamped()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame
-    f, tau = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z = (float(v) for v in force)
-    tau.x, tau.y, tau.z = (float(v) for v in torque)
-    return msg
-
-
 def rejections(node) -> int:
     return sum(rejection_counts(node).values())
 
@@ -176,9 +157,9 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
             cmd_before = (sim._cmd_q, sim._cmd_qd, sim._jump_force)
             rejected_before = rejections(node)
             if kind == "joints":
-                node._on_joint_commands(joint_msg(stamp, *content))
+                node._on_joint_commands(joint_state_msg(stamp, *content))
             else:
-                node._on_jump_command(jump_msg(stamp, *content))
+                node._on_jump_command(wrench_msg(stamp, *content))
             cmd_after = (sim._cmd_q, sim._cmd_qd, sim._jump_force)
             changed = any(a is not b for a, b in zip(cmd_after, cmd_before, strict=True))
             event(f"{kind}: {'applied' if changed else 'rejected'}")
@@ -260,7 +241,7 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
 def test_huge_jump_wrench_is_rejected_but_answers_its_tick(make_node, force, torque) -> None:
     with make_node() as node:
         node._publish_state()
-        node._on_jump_command(jump_msg(Time(), names.WORLD_FRAME, force, torque))
+        node._on_jump_command(wrench_msg(Time(), names.WORLD_FRAME, force, torque))
         assert node.tick.sim._jump_force == (0.0, 0.0, 0.0)
         assert node.tick.lockstep.stamps[names.JUMP_COMMAND] == 0
         assert rejection_counts(node) == {"jump_command": 1}
