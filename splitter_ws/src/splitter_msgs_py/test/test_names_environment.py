@@ -21,22 +21,11 @@ def test_joint_names_are_unique_and_complete() -> None:
     assert all(names.JOINT_INDEX[n] == i for i, n in enumerate(names.JOINT_NAMES))
 
 
-def test_design_topics_are_typed() -> None:
-    for topic in (
-        names.CLOCK,
-        names.IMU,
-        names.ODOM,
-        names.INERTIA,
-        names.JOINT_STATES,
-        names.INERTIA_SETPOINT,
-        names.JOINT_COMMANDS,
-        names.GAIT_PHASE,
-        names.ATTITUDE_REFERENCE,
-        names.JUMP_COMMAND,
-        names.MARKERS,
-        names.DIAGNOSTICS,
-    ):
-        assert "/msg/" in names.TOPIC_TYPES[topic]
+def test_every_topic_is_typed() -> None:
+    constants = {k: v for k, v in vars(names).items() if k.isupper() and isinstance(v, str)}
+    topics = {v for v in constants.values() if v.startswith("/")}
+    assert topics == set(names.TOPIC_TYPES)
+    assert all("/msg/" in message_type for message_type in names.TOPIC_TYPES.values())
 
 
 def test_profile_whitelists_only_loopback() -> None:

@@ -48,6 +48,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -145,16 +146,13 @@ def _best(repeat: int, fn: Callable[[], dict[str, float]]) -> dict[str, float]:
 def physics_figures() -> dict[str, float]:
     """Conservation errors at the paper's step (same set-ups as the unit tests)."""
     model = RobotModel()
-    flight = SimConfig(ground_contact=False)
-    sim = Simulator(
-        model,
-        flight,
-        InitialState(
-            position_m=(0.0, 0.0, 10.0),
-            angular_velocity_rad_s=(0.4, -0.9, 0.7),
-            radii_m=(2.2, 0.33, 0.14),
-        ),
-    )
+
+    def flying(**initial: Any) -> Simulator:
+        """In flight, 10 m up, without ground contact."""
+        state = InitialState(position_m=(0.0, 0.0, 10.0), **initial)
+        return Simulator(model, SimConfig(ground_contact=False), state)
+
+    sim = flying(angular_velocity_rad_s=(0.4, -0.9, 0.7), radii_m=(2.2, 0.33, 0.14))
     s0 = sim.state()
     for _ in range(4000):
         sim.step()
@@ -166,11 +164,7 @@ def physics_figures() -> dict[str, float]:
         ),
         "tumbling_20s_energy_rel_error": abs(s1.kinetic_energy_j / s0.kinetic_energy_j - 1.0),
     }
-    sim = Simulator(
-        model,
-        flight,
-        InitialState(position_m=(0.0, 0.0, 10.0), angular_velocity_rad_s=(-0.3, -0.9, 0.9)),
-    )
+    sim = flying(angular_velocity_rad_s=(-0.3, -0.9, 0.9))
     s0 = sim.state()
     worst_h = 0.0
     sim.command_joints(joint_positions_from_radii(model, (2.3, 0.3, 0.13)))

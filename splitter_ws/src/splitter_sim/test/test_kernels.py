@@ -97,12 +97,18 @@ def _joint_state(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.n
     return q, rng.normal(0.0, 2.0, 25), rng.normal(0.0, 20.0, 25)
 
 
+def _random_case(
+    library: object, seed: int, prm: DynamicsParameters | None = None
+) -> tuple[np.random.Generator, kernels.Kernels, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The generator of ``seed``, the kernels and a joint state (q, qd, qdd) drawn from it."""
+    rng = np.random.default_rng(seed)
+    return rng, _kernels(library, prm or _parameters()), _joint_state(rng)
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.integers(0, 2**31 - 1))
 def test_compiled_shape_equals_the_python_shape(library: object, seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    kern = _kernels(library, _parameters())
-    q, qd, qdd = _joint_state(rng)
+    _, kern, (q, qd, qdd) = _random_case(library, seed)
     _assert_shapes_equal(
         kern.evaluate(q, qd, qdd), KIN.evaluate(q.tolist(), qd.tolist(), qdd.tolist())
     )
@@ -114,9 +120,7 @@ def test_compiled_shape_equals_the_python_shape(library: object, seed: int) -> N
 @settings(max_examples=100, deadline=None)
 @given(st.integers(0, 2**31 - 1))
 def test_compiled_servo_equals_the_python_servo(library: object, seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    kern = _kernels(library, _parameters())
-    q, qd, _ = _joint_state(rng)
+    rng, kern, (q, qd, _) = _random_case(library, seed)
     qd = np.clip(0.2 * qd, -LIMITS.speed_max, LIMITS.speed_max)
     # Far targets, targets within a step (deadbeat), moving and resting targets.
     target = np.where(rng.random(25) < 0.5, q + rng.normal(0.0, 1e-3, 25), _joint_state(rng)[0])
@@ -141,10 +145,8 @@ def test_compiled_servo_equals_the_python_servo(library: object, seed: int) -> N
 def test_compiled_rk4_step_equals_python_with_contact_and_thrust(
     library: object, seed: int, moving: bool
 ) -> None:
-    rng = np.random.default_rng(seed)
     prm = _parameters()
-    kern = _kernels(library, prm)
-    q, qd, qdd = _joint_state(rng)
+    rng, kern, (q, qd, qdd) = _random_case(library, seed, prm)
     if not moving:  # held joints: at rest, or keeping the accelerations of the last step
         qd[:] = 0.0
         qdd *= seed % 2

@@ -121,10 +121,16 @@ def test_the_legs_never_pull_and_never_exceed_the_cap(
 
 @SETTINGS
 @given(legs=IMPEDANCES, compression_m=COMPRESSION, velocity=VELOCITY)
-def test_tangential_force_is_in_the_cone_and_opposes_the_sliding(
+def test_the_normal_force_is_the_capped_impedance_and_the_tangential_opposes_the_sliding(
     legs: LegImpedance, compression_m: float, velocity: tuple[float, float, float]
 ) -> None:
     fx, fy, fz = leg_stance_force(compression_m, velocity, legs)
+    # The normal force: the capped impedance whatever the sliding.
+    impedance = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * velocity[2]
+    assert fz == pytest.approx(min(max(impedance, 0.0), legs.force_max_n), rel=1e-12, abs=1e-12)
+    # Priority: sliding never takes anything from the normal force.
+    assert leg_stance_force(compression_m, (0.0, 0.0, velocity[2]), legs)[2] == fz
+    # The tangential force: in the friction cone, within the damping, against the sliding.
     vx, vy, _ = velocity
     f_t = math.hypot(fx, fy)
     assert f_t <= legs.friction_coefficient * fz * (1.0 + 1e-12) + 1e-12
@@ -134,15 +140,3 @@ def test_tangential_force_is_in_the_cone_and_opposes_the_sliding(
         speed = math.hypot(vx, vy)
         assert fx * vx + fy * vy == pytest.approx(-f_t * speed, rel=1e-9)
         assert abs(fx * vy - fy * vx) <= 1e-9 * f_t * speed + 1e-300
-
-
-@SETTINGS
-@given(legs=IMPEDANCES, compression_m=COMPRESSION, velocity=VELOCITY)
-def test_the_normal_force_is_the_capped_impedance_whatever_the_sliding(
-    legs: LegImpedance, compression_m: float, velocity: tuple[float, float, float]
-) -> None:
-    _, _, fz = leg_stance_force(compression_m, velocity, legs)
-    impedance = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * velocity[2]
-    assert fz == pytest.approx(min(max(impedance, 0.0), legs.force_max_n), rel=1e-12, abs=1e-12)
-    # Priority: sliding never takes anything from the normal force.
-    assert leg_stance_force(compression_m, (0.0, 0.0, velocity[2]), legs)[2] == fz

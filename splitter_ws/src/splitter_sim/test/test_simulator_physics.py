@@ -9,6 +9,7 @@ failing when the physics is deliberately broken.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -209,26 +210,15 @@ def test_dropped_robot_comes_to_rest_with_bounded_penetration_inside_the_cone(
     config = SimConfig(gravity_m_s2=g)
     drop_height = 0.5  # [m] of the lowest mass above the ground
     tilt = Rotation.from_euler("xyz", [25.0, 4.0, 10.0], degrees=True)
-    sim = Simulator(
-        MODEL,
-        config,
-        InitialState(
-            position_m=(0.0, 0.0, 3.0),
-            velocity_m_s=(0.4, -0.2, 0.0),
-            orientation_wxyz=np.roll(tilt.as_quat(), 1),
-            angular_velocity_rad_s=(0.3, 0.05, -0.1),
-        ),
+    initial = InitialState(
+        position_m=(0.0, 0.0, 3.0),
+        velocity_m_s=(0.4, -0.2, 0.0),
+        orientation_wxyz=np.roll(tilt.as_quat(), 1),
+        angular_velocity_rad_s=(0.3, 0.05, -0.1),
     )
-    lowest = sim.state().mass_positions_world_m[:, 2].min()
+    lowest = Simulator(MODEL, config, initial).state().mass_positions_world_m[:, 2].min()
     sim = Simulator(
-        MODEL,
-        config,
-        InitialState(
-            position_m=(0.0, 0.0, 3.0 - lowest + drop_height),
-            velocity_m_s=(0.4, -0.2, 0.0),
-            orientation_wxyz=np.roll(tilt.as_quat(), 1),
-            angular_velocity_rad_s=(0.3, 0.05, -0.1),
-        ),
+        MODEL, config, replace(initial, position_m=(0.0, 0.0, 3.0 - lowest + drop_height))
     )
     m_total = MODEL.total_mass_kg
     k = config.contact_stiffness_n_m
