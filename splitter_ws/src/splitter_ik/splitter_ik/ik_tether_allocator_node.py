@@ -49,7 +49,6 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_ik.core.allocator import AllocatorConfig
@@ -71,7 +70,12 @@ from splitter_msgs_py.conversions import (
     vector3_from_msg,
 )
 from splitter_msgs_py.core.stamps import MessageValidationError
-from splitter_msgs_py.node_pattern import admitted_stamp, run_node, sim_clock_ns
+from splitter_msgs_py.node_pattern import (
+    admitted_stamp,
+    on_sim_time_by_default,
+    run_node,
+    sim_clock_ns,
+)
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterValue,
@@ -100,10 +104,7 @@ class IkTetherAllocatorNode(Node):
     """Answers inertia setpoints with rate-limited, taut-tether joint commands."""
 
     def __init__(self, **kwargs) -> None:
-        overrides = list(kwargs.pop("parameter_overrides", None) or [])
-        if not any(p.name == "use_sim_time" for p in overrides):
-            overrides.append(Parameter("use_sim_time", value=True))
-        super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
+        super().__init__(NODE_NAME, **on_sim_time_by_default(kwargs))
         try:
             values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             self.core = AllocatorTick(

@@ -32,7 +32,6 @@ from collections.abc import Callable, Mapping
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
@@ -57,7 +56,12 @@ from splitter_msgs_py.conversions import (
     twist_from_msg,
     vector3_to_msg,
 )
-from splitter_msgs_py.node_pattern import admitted_stamp, run_node, sim_clock_ns
+from splitter_msgs_py.node_pattern import (
+    admitted_stamp,
+    on_sim_time_by_default,
+    run_node,
+    sim_clock_ns,
+)
 from splitter_msgs_py.node_status import publish_status
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
@@ -121,10 +125,7 @@ class InertialMorphingMpcNode(Node):
     """Answers each control tick's imu + inertia with an inertia setpoint."""
 
     def __init__(self, stop: StopRequest | None = None, **kwargs) -> None:
-        overrides = list(kwargs.pop("parameter_overrides", None) or [])
-        if not any(p.name == "use_sim_time" for p in overrides):
-            overrides.append(Parameter("use_sim_time", value=True))
-        super().__init__(NODE_NAME, parameter_overrides=overrides, **kwargs)
+        super().__init__(NODE_NAME, **on_sim_time_by_default(kwargs))
         try:
             values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             try:

@@ -6,7 +6,8 @@
   stops it with exit code 1 and a message naming the parameter;
   ``KeyboardInterrupt`` and ``ExternalShutdownException`` end it quietly;
   ``destroy_node`` and ``try_shutdown`` always run.
-* :func:`sim_clock_ns` is a node's simulated time (None before ``/clock``).
+* :func:`sim_clock_ns` is a node's simulated time (None before ``/clock``);
+  :func:`on_sim_time_by_default` starts a node on it unless told otherwise.
 * :func:`admitted_stamp` applies the stamp rules of
   :class:`~splitter_msgs_py.core.stamps.StampGate` to a message and turns a
   rejection into a throttled warning (counted for ``/diagnostics``).
@@ -15,17 +16,18 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from splitter_msgs_py.conversions import checked_stamp_from_msg
 from splitter_msgs_py.core.stamps import MessageValidationError, StampGate
-from splitter_msgs_py.parameters import InvalidParameterError, warn_throttled
+from splitter_msgs_py.parameters import USE_SIM_TIME, InvalidParameterError, warn_throttled
 from splitter_msgs_py.signals import StopRequest, spin_until_stopped
 
 N = TypeVar("N", bound=Node)
@@ -69,6 +71,14 @@ def run_node(
             node.destroy_node()
         rclpy.try_shutdown()
     return 0 if node is None or exit_code is None else exit_code(node)
+
+
+def on_sim_time_by_default(node_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """A node's keyword arguments with ``use_sim_time`` True unless an override names it."""
+    overrides = list(node_kwargs.get("parameter_overrides") or [])
+    if not any(p.name == USE_SIM_TIME for p in overrides):
+        overrides.append(Parameter(USE_SIM_TIME, value=True))
+    return {**node_kwargs, "parameter_overrides": overrides}
 
 
 def sim_clock_ns(node: Node) -> int | None:
