@@ -13,9 +13,9 @@ import argparse
 import json
 import logging
 import sys
-from pathlib import Path
 
 from splitter_bringup.analysis.flight_frames import DEFAULT_FPS
+from splitter_bringup.cli.bag_figures import add_bag_figure_arguments
 from splitter_bringup.figures.flight_animation import write_animation
 from splitter_bringup.run.run_bag import contact_forces_from_bag
 
@@ -24,18 +24,10 @@ _log = logging.getLogger(__name__)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``splitter animate``."""
-    parser.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap)")
-    parser.add_argument("--out", type=Path, required=True, help="FILE.mp4 or FILE.gif")
+    add_bag_figure_arguments(parser, "FILE.mp4 or FILE.gif")
     parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="frames per second")
     parser.add_argument("--width", type=int, default=480, help="[px] (even)")
     parser.add_argument("--height", type=int, default=360, help="[px] (even)")
-    parser.add_argument(
-        "--gravity",
-        type=float,
-        default=None,
-        help="gravity [m/s^2] (default: the bag's custom_data, else 0)",
-    )
-    parser.add_argument("--title", default="", help="figure title (default: the bag's name)")
 
 
 def main(args: argparse.Namespace) -> int:

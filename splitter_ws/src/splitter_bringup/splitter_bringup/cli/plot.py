@@ -14,19 +14,12 @@ import json
 import sys
 from pathlib import Path
 
+from splitter_bringup.cli.bag_figures import add_bag_figure_arguments
 from splitter_bringup.figures.trajectory import plot_trajectory, trajectory_summary
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap)")
-    parser.add_argument("--out", type=Path, required=True, help="directory for the PNG files")
-    parser.add_argument(
-        "--gravity",
-        type=float,
-        default=None,
-        help="gravity [m/s^2] (default: the bag's custom_data, else 0)",
-    )
-    parser.add_argument("--title", default="", help="figure title (default: the bag's name)")
+    add_bag_figure_arguments(parser, "directory for the PNG files")
     parser.add_argument("--npz", action="store_true", help="also save the series as .npz")
 
 
