@@ -22,7 +22,7 @@ object with the simulator's state (:meth:`GaitTick.on_state`). Per control tick
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +39,13 @@ from splitter_mpc.core.tick_inputs import TickAssembler, TickEvents
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field, parameter_fields
-from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, MessageValidationError, StampGate
+from splitter_msgs_py.core.stamps import (
+    MAX_STAMP_LEAD_NS,
+    ClockNs,
+    MessageValidationError,
+    StampGate,
+    clock_value,
+)
 
 TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
 # and /splitter/inertia when the attitude reference needs it (GaitConfig.needs_principal_inertia)
@@ -48,7 +54,6 @@ MAX_SPEED_M_S = 1.0e3  # [m/s] per odom velocity component (a jump is a few m/s)
 MAX_BODY_RATE_RAD_S = 1.0e3  # [rad/s] per odom body-rate component (spin ~1 rad/s)
 MAX_CONTACT_FORCE_N = 1.0e7  # [N] per contact force component (weight ~ 30 N on the moon)
 MAX_TETHER_LENGTH_M = 100.0  # [m] tether joint position (the reel holds 6 m)
-ClockNs = int | Callable[[], int | None] | None  # [ns] simulated time, or a function giving it
 
 
 @dataclass(frozen=True)
@@ -226,7 +231,7 @@ class GaitTick:
     # --- the tick --------------------------------------------------------------------------
     def _answer(self, t_ns: int, inputs: dict[str, object | None], clock_ns: ClockNs) -> GaitAnswer:
         self.ticks_answered += 1
-        self.latency.record("state", t_ns, clock_ns() if callable(clock_ns) else clock_ns)
+        self.latency.record("state", t_ns, clock_value(clock_ns))
         if any(sample is None for sample in inputs.values()):
             self.stale_ticks += 1
         samples = self.ticks.samples(inputs)  # a rejected input: its topic's last good one
