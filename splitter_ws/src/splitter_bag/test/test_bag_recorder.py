@@ -11,9 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.exceptions import EndOfFile
-from mcap.records import Chunk, Message
-from mcap.stream_reader import StreamReader, breakup_chunk
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
@@ -21,6 +18,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from splitter_bag import read_messages, read_metadata, recover_bag
 from splitter_bag.core.info import check_consistency
 from splitter_bag.recorder_node import RecorderNode
+from splitter_bag.testing import complete_chunk_messages
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names, qos
 from splitter_msgs_py.environment import ros_environment
@@ -234,18 +232,6 @@ def test_sigint_and_sigterm_finish_the_bag(ros_context, tmp_path: Path, stop_sig
     assert check_consistency(bag_dir).ok
 
 
-def _closed_chunk_messages(path: Path) -> list[Message]:
-    out: list[Message] = []
-    with open(path, "rb") as f:
-        try:
-            for record in StreamReader(f, emit_chunks=True).records:
-                if isinstance(record, Chunk):
-                    out.extend(r for r in breakup_chunk(record) if isinstance(r, Message))
-        except EndOfFile:
-            pass
-    return out
-
-
 def test_kill_9_then_recover_gives_back_every_closed_chunk(ros_context, tmp_path: Path) -> None:
     bag_dir = tmp_path / "killed"
     proc = _start_recorder(bag_dir)
@@ -260,7 +246,7 @@ def test_kill_9_then_recover_gives_back_every_closed_chunk(ros_context, tmp_path
             proc.kill()
     assert not (bag_dir / "metadata.yaml").exists()
     (path,) = bag_dir.glob("*.mcap")
-    closed = _closed_chunk_messages(path)
+    closed = complete_chunk_messages(path)
 
     report = recover_bag(bag_dir)
     recovered = list(read_messages(bag_dir))

@@ -8,10 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
-from mcap.records import Chunk, Message
-from mcap.stream_reader import StreamReader, breakup_chunk
 from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
@@ -28,6 +25,7 @@ from splitter_bag import (
 )
 from splitter_bag.core.info import check_consistency
 from splitter_bag.core.metadata import parse_serialized_metadata
+from splitter_bag.testing import complete_chunk_messages
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 
@@ -209,19 +207,6 @@ def test_writer_refuses_misuse(tmp_path: Path) -> None:
     assert check_consistency(bag_dir).ok
 
 
-def _complete_chunk_messages(path: Path) -> list[Message]:
-    """Messages of the chunks that are whole in a torn file (independent of recover_bag)."""
-    out: list[Message] = []
-    with open(path, "rb") as f:
-        try:
-            for record in StreamReader(f, emit_chunks=True).records:
-                if isinstance(record, Chunk):
-                    out.extend(r for r in breakup_chunk(record) if isinstance(r, Message))
-        except EndOfFile:  # the torn end
-            pass
-    return out
-
-
 def test_recover_torn_file_keeps_every_closed_chunk(tmp_path: Path) -> None:
     messages = sample_messages(300)
     bag_dir = tmp_path / "torn"
@@ -231,7 +216,7 @@ def test_recover_torn_file_keeps_every_closed_chunk(tmp_path: Path) -> None:
     data = path.read_bytes()
     # Cut in the middle of the data section, as a SIGKILL mid-chunk leaves it.
     path.write_bytes(data[: int(len(data) * 0.6)])
-    survivors = _complete_chunk_messages(path)
+    survivors = complete_chunk_messages(path)
     assert 0 < len(survivors) < len(messages)
 
     report = recover_bag(bag_dir)
