@@ -58,7 +58,7 @@ import copy
 import csv
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -102,8 +102,7 @@ class PerturbationSpec:
     actuator_lag_s: float = 0.0  # [s] first-order lag time constant of the joint commands
 
     def __post_init__(self) -> None:
-        for name in ("mass_fraction", "gyro_noise_rad_s", "gyro_bias_rad_s", "actuator_lag_s"):
-            value = getattr(self, name)
+        for name, value in self.as_dict().items():
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
         if self.mass_fraction >= 1.0:
@@ -112,23 +111,11 @@ class PerturbationSpec:
     @property
     def active(self) -> bool:
         """True when anything is perturbed."""
-        return any(
-            v > 0.0
-            for v in (
-                self.mass_fraction,
-                self.gyro_noise_rad_s,
-                self.gyro_bias_rad_s,
-                self.actuator_lag_s,
-            )
-        )
+        return any(v > 0.0 for v in self.as_dict().values())
 
     def as_dict(self) -> dict[str, float]:
-        return {
-            "mass_fraction": self.mass_fraction,
-            "gyro_noise_rad_s": self.gyro_noise_rad_s,
-            "gyro_bias_rad_s": self.gyro_bias_rad_s,
-            "actuator_lag_s": self.actuator_lag_s,
-        }
+        """Each perturbation by its field name."""
+        return asdict(self)
 
 
 @dataclass(frozen=True)
