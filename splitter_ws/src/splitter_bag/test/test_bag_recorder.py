@@ -6,13 +6,13 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
 
 from splitter_bag import read_messages, read_metadata, recover_bag
@@ -22,21 +22,27 @@ from splitter_bag.testing import complete_chunk_messages
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names, qos
 from splitter_msgs_py.environment import ros_environment
-from splitter_msgs_py.parameters import InvalidParameterError
+from splitter_msgs_py.parameters import InvalidParameterError, ParameterValue
+from splitter_msgs_py.testing import spin_until, spun_together
 
 STEP_NS = 5_000_000  # [ns]
 
 
-def spin_until(executor, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"{what} did not happen within {timeout_s} s")
-        executor.spin_once(timeout_sec=0.01)
-
-
 def imu_cdr(k: int) -> bytes:
     return serialize_message(cv.imu_to_msg(k * STEP_NS, [1, 0, 0, 0], [0.1 * k, 0, 0], [0, 0, 1]))
+
+
+def _publisher(node, topic: str, profile: QoSProfile) -> Publisher:
+    """A publisher of ``topic`` with its message type (``names.TOPIC_TYPES``)."""
+    return node.create_publisher(cv.message_class(names.TOPIC_TYPES[topic]), topic, profile)
+
+
+def _recorder(context, bag_dir: Path, **parameters: ParameterValue) -> RecorderNode:
+    """The recorder writing ``bag_dir``, discovering topics every 50 ms."""
+    overrides = [Parameter("output", value=str(bag_dir))]
+    overrides += [Parameter(k, value=v) for k, v in parameters.items()]
+    overrides.append(Parameter("discovery_period_s", value=0.05))
+    return RecorderNode(context=context, parameter_overrides=overrides)
 
 
 def test_records_graph_topics_with_offered_qos(ros_context, tmp_path: Path) -> None:
@@ -44,47 +50,30 @@ def test_records_graph_topics_with_offered_qos(ros_context, tmp_path: Path) -> N
 
     bag_dir = tmp_path / "graph"
     source = Node("source", context=ros_context)
-    recorder = RecorderNode(
-        context=ros_context,
-        parameter_overrides=[
-            Parameter("output", value=str(bag_dir)),
-            Parameter("regex", value="^/splitter/"),
-            Parameter("exclude_regex", value="markers"),
-            Parameter("discovery_period_s", value=0.05),
-        ],
-    )
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(source)
-    executor.add_node(recorder)
-    imu_pub = source.create_publisher(
-        cv.message_class(names.TOPIC_TYPES[names.IMU]), names.IMU, qos.STATE_QOS
-    )
-    phase_pub = source.create_publisher(
-        cv.message_class(names.TOPIC_TYPES[names.GAIT_PHASE]), names.GAIT_PHASE, qos.LATCHED_QOS
-    )
-    markers_pub = source.create_publisher(
-        cv.message_class(names.TOPIC_TYPES[names.MARKERS]), names.MARKERS, qos.MARKERS_QOS
-    )
-    spin_until(
-        executor,
-        lambda: imu_pub.get_subscription_count() > 0 and phase_pub.get_subscription_count() > 0,
-        10.0,
-        "recorder subscription",
-    )
-    sent = []
-    phase = cv.message_class("std_msgs/msg/String")(data="IN_FLIGHT")
-    phase_pub.publish(phase)
-    sent_phase = serialize_message(phase)
-    for k in range(300):
-        msg = cv.imu_to_msg(k * STEP_NS, [1, 0, 0, 0], [0.01 * k, 0.0, 0.0], [0.0, 0.0, 1.0])
-        imu_pub.publish(msg)
-        sent.append(msg)
-        executor.spin_once(timeout_sec=0)
-    spin_until(executor, lambda: recorder.message_counts.get(names.IMU, 0) == 300, 10.0, "300 IMU")
-    assert names.MARKERS not in recorder.recorded_topics  # excluded by exclude_regex
-    assert markers_pub.get_subscription_count() == 0
-    recorder.destroy_node()
-    source.destroy_node()
+    recorder = _recorder(ros_context, bag_dir, regex="^/splitter/", exclude_regex="markers")
+    with spun_together(ros_context, source, recorder) as executor:
+        imu_pub = _publisher(source, names.IMU, qos.STATE_QOS)
+        phase_pub = _publisher(source, names.GAIT_PHASE, qos.LATCHED_QOS)
+        markers_pub = _publisher(source, names.MARKERS, qos.MARKERS_QOS)
+        spin_until(
+            executor,
+            lambda: imu_pub.get_subscription_count() > 0 and phase_pub.get_subscription_count() > 0,
+            10.0,
+            "recorder subscription",
+        )
+        sent = []
+        phase = cv.message_class("std_msgs/msg/String")(data="IN_FLIGHT")
+        phase_pub.publish(phase)
+        sent_phase = serialize_message(phase)
+        for k in range(300):
+            msg = cv.imu_to_msg(k * STEP_NS, [1, 0, 0, 0], [0.01 * k, 0.0, 0.0], [0.0, 0.0, 1.0])
+            imu_pub.publish(msg)
+            sent.append(msg)
+            executor.spin_once(timeout_sec=0)
+        spin_until(executor, lambda: recorder.message_counts.get(names.IMU, 0) == 300, 10.0, "IMU")
+        assert names.MARKERS not in recorder.recorded_topics  # excluded by exclude_regex
+        assert markers_pub.get_subscription_count() == 0
+    # the recorder destroyed: its bag is closed
 
     metadata = read_metadata(bag_dir)
     assert {t.topic_metadata.name: t.message_count for t in metadata.topics_with_message_count} == {
@@ -113,33 +102,20 @@ def test_log_time_is_simulated_time_with_use_sim_time(ros_context, tmp_path: Pat
 
     bag_dir = tmp_path / "sim"
     source = Node("sim_source", context=ros_context)
-    recorder = RecorderNode(
-        context=ros_context,
-        parameter_overrides=[
-            Parameter("output", value=str(bag_dir)),
-            Parameter("topics", value=f"{names.IMU}, {names.CLOCK}"),
-            Parameter("use_sim_time", value=True),
-            Parameter("discovery_period_s", value=0.05),
-        ],
+    recorder = _recorder(
+        ros_context, bag_dir, topics=f"{names.IMU}, {names.CLOCK}", use_sim_time=True
     )
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(source)
-    executor.add_node(recorder)
-    clock_pub = source.create_publisher(
-        cv.message_class(names.TOPIC_TYPES[names.CLOCK]), names.CLOCK, qos.CLOCK_QOS
-    )
-    imu_pub = source.create_publisher(
-        cv.message_class(names.TOPIC_TYPES[names.IMU]), names.IMU, qos.STATE_QOS
-    )
-    spin_until(executor, lambda: imu_pub.get_subscription_count() > 0, 10.0, "subscription")
-    spin_until(executor, lambda: clock_pub.get_subscription_count() >= 2, 10.0, "clock subs")
     t_sim = 42 * 1_000_000_000
-    clock_pub.publish(cv.clock_to_msg(t_sim))
-    spin_until(executor, lambda: recorder.get_clock().now().nanoseconds == t_sim, 10.0, "sim time")
-    imu_pub.publish(cv.imu_to_msg(t_sim - STEP_NS, [1, 0, 0, 0], [0, 0, 0], [0, 0, 0]))
-    spin_until(executor, lambda: recorder.message_counts.get(names.IMU) == 1, 10.0, "IMU")
-    recorder.destroy_node()
-    source.destroy_node()
+    with spun_together(ros_context, source, recorder) as executor:
+        clock_pub = _publisher(source, names.CLOCK, qos.CLOCK_QOS)
+        imu_pub = _publisher(source, names.IMU, qos.STATE_QOS)
+        spin_until(executor, lambda: imu_pub.get_subscription_count() > 0, 10.0, "subscription")
+        spin_until(executor, lambda: clock_pub.get_subscription_count() >= 2, 10.0, "clock subs")
+        clock_pub.publish(cv.clock_to_msg(t_sim))
+        now = recorder.get_clock().now
+        spin_until(executor, lambda: now().nanoseconds == t_sim, 10.0, "sim time")
+        imu_pub.publish(cv.imu_to_msg(t_sim - STEP_NS, [1, 0, 0, 0], [0, 0, 0], [0, 0, 0]))
+        spin_until(executor, lambda: recorder.message_counts.get(names.IMU) == 1, 10.0, "IMU")
     (imu,) = [m for m in read_messages(bag_dir) if m.topic == names.IMU]
     assert imu.log_time_ns == t_sim  # receive time on the simulated clock
     assert imu.publish_time_ns == t_sim - STEP_NS  # header stamp
@@ -147,21 +123,9 @@ def test_log_time_is_simulated_time_with_use_sim_time(ros_context, tmp_path: Pat
 
 def test_invalid_parameters_stop_the_recorder(ros_context, tmp_path: Path) -> None:
     with pytest.raises(InvalidParameterError, match="regex"):
-        RecorderNode(
-            context=ros_context,
-            parameter_overrides=[
-                Parameter("output", value=str(tmp_path / "x")),
-                Parameter("regex", value="(unclosed"),
-            ],
-        )
+        _recorder(ros_context, tmp_path / "x", regex="(unclosed")
     with pytest.raises(InvalidParameterError, match="compression"):
-        RecorderNode(
-            context=ros_context,
-            parameter_overrides=[
-                Parameter("output", value=str(tmp_path / "y")),
-                Parameter("compression", value="bz2"),
-            ],
-        )
+        _recorder(ros_context, tmp_path / "y", compression="bz2")
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
 
 
@@ -197,9 +161,7 @@ def _publish_to(proc: subprocess.Popen, ros_context, first: int, count: int, pub
 
     if publisher is None:
         node = Node("bag_test_publisher", context=ros_context)
-        publisher = node.create_publisher(
-            cv.message_class(names.TOPIC_TYPES[names.IMU]), names.IMU, qos.STATE_QOS
-        )
+        publisher = _publisher(node, names.IMU, qos.STATE_QOS)
         deadline = time.monotonic() + 20.0
         while publisher.get_subscription_count() == 0:
             assert proc.poll() is None, proc.stderr.read().decode()
