@@ -162,9 +162,9 @@ def test_recovery_asks_for_the_recovery_spin_until_the_body_has_turned(mpc, monk
     given = []
     solve = mpc.solve
 
-    def recording_solve(t_ns, state, w_ref, *args, **kwargs):
-        given.append(np.array(w_ref, dtype=float))
-        return solve(t_ns, state, w_ref, *args, **kwargs)
+    def recording_solve(request):
+        given.append(np.array(request.w_ref_rad_s, dtype=float))
+        return solve(request)
 
     monkeypatch.setattr(mpc, "solve", recording_solve)
     ctl = controller(mpc, recovery_spin_rad_s=2.0)

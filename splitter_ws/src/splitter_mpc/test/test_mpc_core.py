@@ -17,7 +17,12 @@ from splitter_mpc.core.limits import (
     morphing_limits,
     project_to_reachable,
 )
-from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
+from splitter_mpc.core.mpc import (
+    InertialMorphingMpc,
+    MpcSettings,
+    PlanRequest,
+    settings_for_weights,
+)
 from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function
 from splitter_mpc.core.solvers import OBJECTIVE_SCALE_MIN, SolverOptions
 
@@ -146,9 +151,8 @@ def test_attitude_cost_treats_q_and_minus_q_alike() -> None:
 
 def test_plan_stays_within_what_the_hardware_reaches(mpc) -> None:
     mpc.reset()
-    plan = mpc.solve(
-        0, np.concatenate([W0, IDENTITY, I0]), [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights()
-    )
+    state = np.concatenate([W0, IDENTITY, I0])
+    plan = mpc.solve(PlanRequest(0, state, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights()))
     assert plan.result.converged and plan.result.usable
     tol = 1e-6
     assert np.all(plan.radii >= MODEL.radii_min_m - tol)
@@ -173,7 +177,7 @@ def test_plan_stays_within_what_the_hardware_reaches(mpc) -> None:
 def test_warm_start_is_the_shifted_previous_solution(mpc) -> None:
     mpc.reset()
     x = np.concatenate([W0, IDENTITY, I0])
-    first = mpc.solve(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    first = mpc.solve(PlanRequest(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights()))
     measured = np.concatenate([first.angular_velocity[2], first.orientation[2], first.inertia[2]])
     x0 = mpc.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
     z0, lam_g, _ = mpc._warm_start(100_000_000, x0)
@@ -187,7 +191,9 @@ def test_warm_start_is_the_shifted_previous_solution(mpc) -> None:
     np.testing.assert_allclose(xs[49:], mpc.rollout(xs[48], us[48:])[1:], atol=1e-12)
     assert lam_g.shape == (mpc.ocp.n_g,)
     # a solve from there converges, from the warm start
-    second = mpc.solve(100_000_000, measured, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    second = mpc.solve(
+        PlanRequest(100_000_000, measured, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    )
     assert second.result.converged
 
 
@@ -257,9 +263,9 @@ def test_without_attitude_tracking_the_ocp_drops_q_and_keeps_the_optimum(mpc) ->
     x = np.concatenate([W0, IDENTITY, I0])
     refs = np.tile(IDENTITY, (51, 1))
     for weights in (MpcWeights(), MpcWeights(objective="momentum")):
-        full = mpc.solve(0, x, [0, 1, 0], refs, weights)
+        full = mpc.solve(PlanRequest(0, x, [0, 1, 0], refs, weights))
         mpc.reset()
-        plan = lean.solve(0, x, [0, 1, 0], refs, weights)
+        plan = lean.solve(PlanRequest(0, x, [0, 1, 0], refs, weights))
         lean.reset()
         assert full.result.converged and plan.result.converged
         assert plan.orientation is None and full.orientation is not None
@@ -276,10 +282,9 @@ def test_attitude_weights_need_the_attitude_in_the_state() -> None:
     with pytest.raises(ValueError, match="attitude_states"):
         ControllerConfig(weights=tracking, mpc=lean)
     mpc = InertialMorphingMpc(MODEL, lean)
+    state = np.concatenate([W0, IDENTITY, I0])
     with pytest.raises(ValueError, match="attitude"):
-        mpc.solve(
-            0, np.concatenate([W0, IDENTITY, I0]), [0, 1, 0], np.tile(IDENTITY, (51, 1)), tracking
-        )
+        mpc.solve(PlanRequest(0, state, [0, 1, 0], np.tile(IDENTITY, (51, 1)), tracking))
     with pytest.raises(ValueError, match="no attitude"):
         _ = mpc.ocp.state.q
 
@@ -335,9 +340,10 @@ def test_objective_scaling_makes_a_solve_independent_of_the_weights_scale(mpc) -
     for factor in (1.0, 8.0):
         mpc.reset()
         weights = scaled_weights(MpcWeights(), factor)
-        gradient_scale = mpc.backend.objective_scale(mpc.problem(0, x, [0, 1, 0], q_ref, weights))
+        request = PlanRequest(0, x, [0, 1, 0], q_ref, weights)
+        gradient_scale = mpc.backend.objective_scale(mpc.problem(request))
         assert gradient_scale < 1.0  # Table I's gradient is ~500: scaled down to 100
-        plans.append(mpc.solve(0, x, [0, 1, 0], q_ref, weights))
+        plans.append(mpc.solve(request))
     one, eight = plans
     assert one.result.converged and eight.result.converged
     assert one.result.iterations == eight.result.iterations
@@ -349,5 +355,5 @@ def test_a_wild_start_is_not_scaled_below_ipopts_minimum(mpc) -> None:
     mpc.reset()
     x = np.concatenate([W0, IDENTITY, I0])
     weights = scaled_weights(MpcWeights(), 2.0**40)  # gradient ~5e14
-    data = mpc.problem(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), weights)
+    data = mpc.problem(PlanRequest(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), weights))
     assert mpc.backend.objective_scale(data) == OBJECTIVE_SCALE_MIN

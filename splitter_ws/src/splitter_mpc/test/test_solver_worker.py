@@ -12,7 +12,7 @@ import pytest
 
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
-from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, build_backend
+from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, PlanRequest, build_backend
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solver_worker import (
     STATUS_ABANDONED,
@@ -49,7 +49,8 @@ def local_mpc() -> InertialMorphingMpc:
 
 def problem(mpc: InertialMorphingMpc, t_ms: int = 0):
     state = np.concatenate([W0, Q0, I0])
-    return mpc.problem(t_ms * MS, state, [0.0, 1.0, 0.0], np.tile(Q0, (11, 1)), MpcWeights())
+    q_ref = np.tile(Q0, (11, 1))
+    return mpc.problem(PlanRequest(t_ms * MS, state, [0.0, 1.0, 0.0], q_ref, MpcWeights()))
 
 
 def worker(**faults) -> SolverWorker:
@@ -107,7 +108,7 @@ def test_non_finite_problem_data_never_reaches_the_solver(local_mpc) -> None:
     q_ref = np.tile(Q0, (11, 1))
     nominal = [np.inf, 1.0, 1.0]
     plan = local_mpc.solve(
-        0, state, [0.0, 1.0, 0.0], q_ref, MpcWeights(), nominal_inertia_kg_m2=nominal
+        PlanRequest(0, state, [0.0, 1.0, 0.0], q_ref, MpcWeights(), nominal_inertia_kg_m2=nominal)
     )
     assert plan.result.status == STATUS_NON_FINITE_DATA and not plan.result.usable
 

@@ -15,12 +15,11 @@ import time
 
 import casadi as ca
 import numpy as np
-from numpy.typing import ArrayLike
 
 from splitter_model.model import RobotModel
 from splitter_mpc.core.limits import axis_inertia_range, morphing_limits
-from splitter_mpc.core.mpc import MpcPlan, MpcSettings
-from splitter_mpc.core.ocp import MpcWeights, discrete_dynamics, momentum_target
+from splitter_mpc.core.mpc import MpcPlan, MpcSettings, PlanRequest
+from splitter_mpc.core.ocp import discrete_dynamics, momentum_target
 from splitter_mpc.core.solvers import SolverResult
 
 
@@ -135,22 +134,14 @@ class OptiBaselineMpc:
     def reset(self) -> None:
         self._last = None
 
-    def solve(
-        self,
-        t_ns: int,
-        state: ArrayLike,
-        w_ref_rad_s: ArrayLike,
-        q_ref_wxyz: ArrayLike,
-        weights: MpcWeights,
-        *,
-        nominal_inertia_kg_m2: ArrayLike | None = None,
-    ) -> MpcPlan:
+    def solve(self, request: PlanRequest) -> MpcPlan:
         """Same contract as :meth:`InertialMorphingMpc.solve` (no q_i term)."""
-        if any(weights.q_i):
+        t_ns, w_ref_rad_s = request.t_ns, request.w_ref_rad_s
+        if any(request.weights.q_i):
             raise ValueError("the Opti baseline has no nominal-configuration term q_i")
-        weights = weights.per_stage(self.settings.weights_step_ratio)
+        weights = request.weights.per_stage(self.settings.weights_step_ratio)
         opti, lim, n, dt = self._opti, self.limits, self.horizon, self.settings.dt_s
-        x0 = np.asarray(state, dtype=float).reshape(10).copy()
+        x0 = np.asarray(request.state, dtype=float).reshape(10).copy()
         x0[3:7] /= np.linalg.norm(x0[3:7])
         s_now = np.clip(lim.radii_squared(x0[7:10]), lim.radius_min_m**2, lim.radius_max_m**2)
         x0[7:10] = np.linalg.solve(lim.radius_squared_matrix, s_now)
@@ -159,7 +150,8 @@ class OptiBaselineMpc:
         r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * dt)
         opti.set_value(self._p_x0, x0)
         opti.set_value(self._p_w_ref, np.asarray(w_ref_rad_s, dtype=float))
-        opti.set_value(self._p_q_ref, np.asarray(q_ref_wxyz, dtype=float).reshape(n + 1, 4).T)
+        q_ref = np.asarray(request.q_ref_wxyz, dtype=float).reshape(n + 1, 4)
+        opti.set_value(self._p_q_ref, q_ref.T)
         opti.set_value(self._p_q_w, weights.q_w)
         opti.set_value(self._p_r, weights.r)
         opti.set_value(self._p_q_t, weights.q_t)
@@ -174,9 +166,8 @@ class OptiBaselineMpc:
         opti.set_value(self._p_axis, axis)
         opti.set_value(self._p_h_norm, h_norm)
         opti.set_value(self._p_spin, spin)
-        opti.set_value(
-            self._p_i_nom, x0[7:10] if nominal_inertia_kg_m2 is None else nominal_inertia_kg_m2
-        )
+        nominal = request.nominal_inertia_kg_m2
+        opti.set_value(self._p_i_nom, x0[7:10] if nominal is None else nominal)
         opti.set_value(self._p_q_spin, 0.5 * scales[16:18] ** 2)
         r_next_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * (k + 1) * dt)
         opti.set_value(self._p_rate, (2.0 * lim.radius_step_max_m * r_next_low).T)

@@ -35,7 +35,13 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_model.model import RobotModel
 from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
 from splitter_mpc.core.limits import axis_inertia_range
-from splitter_mpc.core.mpc import NS_PER_S, InertialMorphingMpc, MpcPlan, MpcSettings
+from splitter_mpc.core.mpc import (
+    NS_PER_S,
+    InertialMorphingMpc,
+    MpcPlan,
+    MpcSettings,
+    PlanRequest,
+)
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import Closable, close_part
 from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field
@@ -360,7 +366,7 @@ class MorphingController(Closable):
     def _replan(self, t_ns: int, state: NDArray[np.float64]) -> dict:
         previous = self._status
         try:
-            plan = self.mpc.solve(
+            request = PlanRequest(
                 t_ns,
                 state,
                 self.spin_reference(),
@@ -368,6 +374,7 @@ class MorphingController(Closable):
                 self.weights,
                 nominal_inertia_kg_m2=self._nominal,
             )
+            plan = self.mpc.solve(request)
             result = plan.result
             status, ok = result.status, result.usable
             late_s = self.mpc.settings.options.max_time_s

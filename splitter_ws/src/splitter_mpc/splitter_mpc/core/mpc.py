@@ -205,6 +205,24 @@ def settings_for_weights(settings: MpcSettings, weights: MpcWeights) -> MpcSetti
 
 
 @dataclass(frozen=True)
+class PlanRequest:
+    """What one solve plans from: the state measured at ``t_ns``, the references, the weights.
+
+    ``state`` = (w (3), q (4, wxyz), principal moments (3)); ``q_ref_wxyz`` is the
+    attitude reference at each of the N+1 prediction times; ``nominal_inertia_kg_m2``
+    (None: the measured one) is the I_nom of the momentum objective's rate scale and
+    of the nominal-configuration term.
+    """
+
+    t_ns: int  # [ns]
+    state: ArrayLike
+    w_ref_rad_s: ArrayLike  # [rad/s]
+    q_ref_wxyz: ArrayLike  # (N+1, 4)
+    weights: MpcWeights
+    nominal_inertia_kg_m2: ArrayLike | None = None  # [kg m^2]
+
+
+@dataclass(frozen=True)
 class MpcPlan:
     """A solved plan: predicted states from ``t_ns`` on the ``dt_ns`` grid."""
 
@@ -335,33 +353,15 @@ class InertialMorphingMpc(Closable):
         lam_z = np.zeros(self.ocp.n_z)
         return self.ocp.join(xs, us), lam_g, lam_z
 
-    def solve(
-        self,
-        t_ns: int,
-        state: ArrayLike,
-        w_ref_rad_s: ArrayLike,
-        q_ref_wxyz: ArrayLike,
-        weights: MpcWeights,
-        *,
-        nominal_inertia_kg_m2: ArrayLike | None = None,
-    ) -> MpcPlan:
-        """Plan from the measured ``state`` = (w (3), q (4), principal moments (3)) at ``t_ns``.
+    def solve(self, request: PlanRequest) -> MpcPlan:
+        """Plan from the measured state of ``request`` (:class:`PlanRequest`).
 
-        ``q_ref_wxyz`` is the attitude reference at each of the N+1 prediction
-        times; ``nominal_inertia_kg_m2`` (default: the measured one) is the I_nom of
-        the momentum objective's rate scale and of the nominal-configuration term. The plan is
-        returned whatever the solver's status; check ``plan.result.usable`` before
-        executing it. The warm start is updated by usable solutions (and by every
-        finite sqp/rti iterate).
+        The plan is returned whatever the solver's status; check
+        ``plan.result.usable`` before executing it. The warm start is updated by
+        usable solutions (and by every finite sqp/rti iterate).
         """
-        data = self.problem(
-            t_ns,
-            state,
-            w_ref_rad_s,
-            q_ref_wxyz,
-            weights,
-            nominal_inertia_kg_m2=nominal_inertia_kg_m2,
-        )
+        t_ns = request.t_ns
+        data = self.problem(request)
         bad = non_finite_fields(data)
         if bad:  # never handed to a solver (casadi#3857: fatrop can freeze on them)
             _LOG.warning("MPC problem at t = %d ns has non-finite %s: not solved", t_ns, bad)
@@ -382,40 +382,32 @@ class InertialMorphingMpc(Closable):
             result=result,
         )
 
-    def problem(
-        self,
-        t_ns: int,
-        state: ArrayLike,
-        w_ref_rad_s: ArrayLike,
-        q_ref_wxyz: ArrayLike,
-        weights: MpcWeights,
-        *,
-        nominal_inertia_kg_m2: ArrayLike | None = None,
-    ) -> ProblemInstance:
+    def problem(self, request: PlanRequest) -> ProblemInstance:
         """The NLP :meth:`solve` hands to the back-end: warm start, bounds, parameters."""
-        if weights.tracks_attitude and not self.settings.attitude_states:
+        if request.weights.tracks_attitude and not self.settings.attitude_states:
             raise ValueError(
                 "weights q_q/q_tq track the attitude, but this MPC was built without it "
                 "(MpcSettings.attitude_states; see settings_for_weights)"
             )
-        weights = weights.per_stage(self.settings.weights_step_ratio)
-        measured = np.asarray(state, dtype=float).reshape(N_MEASURED)
+        weights = request.weights.per_stage(self.settings.weights_step_ratio)
+        measured = np.asarray(request.state, dtype=float).reshape(N_MEASURED)
         x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
-        z0, lam_g0, lam_z0 = self._warm_start(int(t_ns), x0)
+        z0, lam_g0, lam_z0 = self._warm_start(int(request.t_ns), x0)
         lbz, ubz = self.ocp.variable_bounds(x0)
         lbg, ubg = self.ocp.constraint_bounds(x0)
         momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
-        axis, _ = momentum_target(w_ref_rad_s, momentum_norm)
+        axis, _ = momentum_target(request.w_ref_rad_s, momentum_norm)
+        nominal = request.nominal_inertia_kg_m2
         return ProblemInstance(
             z0=z0,
             lam_g0=lam_g0,
             lam_z0=lam_z0,
             p=parameter_vector(
                 self.ocp.layout,
-                w_ref_rad_s,
-                q_ref_wxyz,
+                request.w_ref_rad_s,
+                request.q_ref_wxyz,
                 weights,
-                measured[7:10] if nominal_inertia_kg_m2 is None else nominal_inertia_kg_m2,
+                measured[7:10] if nominal is None else nominal,
                 momentum_norm=momentum_norm,
                 axis_inertia_range_kg_m2=axis_inertia_range(self.limits, axis),
             ),
