@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from splitter_bag import BagWriter, QosProfile
 from splitter_bag.core.playback import PlaybackClock, parse_topic_list, select_topics
 from splitter_bag.player_node import PlayerNode
 from splitter_msgs_py import conversions as cv
-from splitter_msgs_py.parameters import InvalidParameterError
+from splitter_msgs_py.parameters import InvalidParameterError, ParameterValue
 
 START_NS = 10_000_000_000  # [ns] bag start (log time)
 A_PERIOD_NS = 50_000_000  # [ns]
@@ -71,9 +72,19 @@ class Listener:
         )
 
 
+def finished(player: PlayerNode, _: Listener) -> bool:
+    """The player played the bag to its end."""
+    return player.finished.is_set()
+
+
 def play(
-    context, bag_dir: Path, until, timeout_s: float = 10.0, **params
+    context,
+    bag_dir: Path,
+    until: Callable[[PlayerNode, Listener], bool] = finished,
+    timeout_s: float = 10.0,
+    **params: ParameterValue,
 ) -> tuple[PlayerNode, Listener]:
+    """Play ``bag_dir`` with ``params`` to a listener until ``until``; the player stopped."""
     listener = Listener(context)
     # Discovery on a loaded machine can take a while: 1 s before the first message.
     overrides = [Parameter("bag", value=str(bag_dir)), Parameter("start_delay_s", value=1.0)]
@@ -97,13 +108,7 @@ def play(
 
 def test_plays_selected_topic_with_original_timing_and_clock(ros_context, bag) -> None:
     bag_dir, written = bag
-    player, listener = play(
-        ros_context,
-        bag_dir,
-        lambda p, _: p.finished.is_set(),
-        topics="/test/a",
-        clock_rate_hz=50.0,
-    )
+    player, listener = play(ros_context, bag_dir, topics="/test/a", clock_rate_hz=50.0)
     assert player.topics == ["/test/a"]
     assert [(topic, data) for topic, data, _ in listener.got] == [
         ("/test/a", data) for _, data in written["/test/a"]
@@ -123,13 +128,7 @@ def test_plays_selected_topic_with_original_timing_and_clock(ros_context, bag) -
 def test_rate_and_start_offset(ros_context, bag) -> None:
     bag_dir, written = bag
     _, listener = play(
-        ros_context,
-        bag_dir,
-        lambda p, _: p.finished.is_set(),
-        topics="/test/a",
-        rate=2.0,
-        start_offset_s=0.2,
-        clock_rate_hz=0.0,
+        ros_context, bag_dir, topics="/test/a", rate=2.0, start_offset_s=0.2, clock_rate_hz=0.0
     )
     expected = [(t, d) for t, d in written["/test/a"] if t >= START_NS + 200_000_000]
     assert [d for _, d, _ in listener.got] == [d for _, d in expected]
