@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_bringup.analysis.series import RunSeries
 from splitter_ik.core.tether import hemi_mass_kg
 from splitter_model.actuators import TETHER_INDEX
-from splitter_model.kinematics import limb_forward_kinematics
+from splitter_model.kinematics import limb_forward_kinematics, limb_offsets_from_joint_positions
 from splitter_model.model import (
     MOTOR_OUTPUT_CONTINUOUS_TORQUE_NM,
     MOTOR_OUTPUT_PEAK_TORQUE_NM,
@@ -77,14 +77,11 @@ def limb_jacobian(model: RobotModel, limb: int, joint_angles_rad: ArrayLike) -> 
 def tip_positions_m(model: RobotModel, joint_position: ArrayLike) -> NDArray[np.float64]:
     """Limb tips (n, 8, 3) [m] in ``base``: hemi body at (+-L/2, 0, 0) plus the limb FK."""
     q = np.atleast_2d(np.asarray(joint_position, dtype=float))
+    hemi_side = np.where(np.arange(8) < 4, 1.0, -1.0)  # limbs 0-3 on hemi a (+x), 4-7 on b
     tips = np.empty((q.shape[0], 8, 3))
     for k in range(q.shape[0]):
-        for limb in range(8):
-            sign = 1.0 if limb < 4 else -1.0
-            body = np.array([sign * q[k, TETHER_INDEX] / 2.0, 0.0, 0.0])
-            tips[k, limb] = body + limb_forward_kinematics(
-                model, limb, q[k, 3 * limb : 3 * limb + 3]
-            )
+        tips[k] = limb_offsets_from_joint_positions(model, q[k])
+        tips[k, :, 0] += hemi_side * q[k, TETHER_INDEX] / 2.0
     return tips
 
 
