@@ -136,9 +136,19 @@ def scene_arrows(
     contact_forces_n: ArrayLike | None = None,
 ) -> list[Arrow]:
     """Body axes, angular momentum and (with masses and forces given) contact forces."""
-    arrows = body_axes(position_m, orientation_wxyz)
     h = angular_momentum_world(orientation_wxyz, principal_inertia_kg_m2, angular_velocity_rad_s)
-    arrows.append(momentum_arrow(position_m, h))
+    return _arrows(position_m, orientation_wxyz, h, mass_positions_world, contact_forces_n)
+
+
+def _arrows(
+    position_m: ArrayLike,
+    orientation_wxyz: ArrayLike,
+    momentum_world: ArrayLike,
+    mass_positions_world: ArrayLike | None,
+    contact_forces_n: ArrayLike | None,
+) -> list[Arrow]:
+    arrows = body_axes(position_m, orientation_wxyz)
+    arrows.append(momentum_arrow(position_m, momentum_world))
     if mass_positions_world is not None and contact_forces_n is not None:
         arrows += contact_arrows(mass_positions_world, contact_forces_n)
     return arrows
@@ -199,11 +209,15 @@ class Scene:
     @property
     def arrows(self) -> tuple[Arrow, ...]:
         """Body axes, angular momentum and (when known) the contact forces."""
-        arrows = body_axes(self.position_m, self.orientation_wxyz)
-        arrows.append(momentum_arrow(self.position_m, self.angular_momentum_kg_m2_s))
-        if self.contact_forces_n is not None:
-            arrows += contact_arrows(self.mass_positions_m, self.contact_forces_n)
-        return tuple(arrows)
+        return tuple(
+            _arrows(
+                self.position_m,
+                self.orientation_wxyz,
+                self.angular_momentum_kg_m2_s,
+                self.mass_positions_m,
+                self.contact_forces_n,
+            )
+        )
 
 
 def lowest_mass(mass_positions_world: ArrayLike, hemi: int) -> NDArray[np.float64]:

@@ -45,6 +45,7 @@ from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
+from splitter_sim.core.contact import contact_reach_m, mass_heights_m
 from splitter_sim.core.legs import LegImpedance, leg_stance_force
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
@@ -80,6 +81,23 @@ def _non_negative(name: str, value: float) -> None:
 def _boolean(name: str, value: object) -> None:
     if not isinstance(value, bool):
         raise ValueError(f"SimConfig.{name} must be a bool, got {value!r}")
+
+
+# What SimConfig's fields must be, besides the range of their node parameter (which a
+# config built in code does not pass through).
+_POSITIVE = ("dt_s", "contact_stiffness_n_m", "friction_damping_n_s_m", "leg_force_max_n")
+_NON_NEGATIVE = (
+    "gravity_m_s2",
+    "contact_damping_n_s_m",
+    "friction_coefficient",
+    "thrust_stroke_m",
+    "leg_stiffness_n_m",
+    "leg_damping_n_s_m",
+    "leg_tangential_damping_n_s_m",
+    "command_extrapolation_s",
+    "knot_blend_s",
+)
+_BOOLEAN = ("ground_contact", "compliant_legs")
 
 
 @dataclass(frozen=True)
@@ -155,30 +173,21 @@ class SimConfig:
     )
 
     def __post_init__(self) -> None:
-        _positive("dt_s", self.dt_s)
+        for name in _POSITIVE:
+            _positive(name, getattr(self, name))
+        for name in _NON_NEGATIVE:
+            _non_negative(name, getattr(self, name))
+        for name in _BOOLEAN:
+            _boolean(name, getattr(self, name))
         if self.dt_s > 0.1:
             raise ValueError(f"SimConfig.dt_s must be <= 0.1 s, got {self.dt_s!r}")
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
-        _non_negative("gravity_m_s2", self.gravity_m_s2)
-        _boolean("ground_contact", self.ground_contact)
-        _positive("contact_stiffness_n_m", self.contact_stiffness_n_m)
-        _non_negative("contact_damping_n_s_m", self.contact_damping_n_s_m)
-        _non_negative("friction_coefficient", self.friction_coefficient)
-        _positive("friction_damping_n_s_m", self.friction_damping_n_s_m)
         if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
             raise ValueError(
                 "SimConfig.contact_substeps must be an int in [1, 100], "
                 f"got {self.contact_substeps!r}"
             )
-        _non_negative("thrust_stroke_m", self.thrust_stroke_m)
-        _boolean("compliant_legs", self.compliant_legs)
-        _non_negative("leg_stiffness_n_m", self.leg_stiffness_n_m)
-        _non_negative("leg_damping_n_s_m", self.leg_damping_n_s_m)
-        _non_negative("leg_tangential_damping_n_s_m", self.leg_tangential_damping_n_s_m)
-        _positive("leg_force_max_n", self.leg_force_max_n)
-        _non_negative("command_extrapolation_s", self.command_extrapolation_s)
-        _non_negative("knot_blend_s", self.knot_blend_s)
 
     @property
     def legs(self) -> LegImpedance:
@@ -540,12 +549,10 @@ class Simulator:
         pz = s[2]
         if pz - shape.radius_max > self._far_above_m:
             return None
-        _, _, _, _, _, _, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
         shape.relative()
-        return [
-            pz + r20 * x + r21 * y + r22 * z
-            for x, y, z in zip(shape.rx, shape.ry, shape.rz, strict=True)
-        ]
+        return mass_heights_m(
+            pz, rotation_matrix(s[6], s[7], s[8], s[9])[6:], shape.rx, shape.ry, shape.rz
+        )
 
     @staticmethod
     def _lowest_per_hemi(heights: list[float] | None) -> tuple[float, float]:
@@ -614,16 +621,10 @@ class Simulator:
         """Masses that can reach the ground within the coming step."""
         if heights is None or not self.config.ground_contact:
             return ()
-        vx, vy, vz = s[3], s[4], s[5]
-        wx, wy, wz = angular_velocity(shape, s[10], s[11], s[12])
-        speed = (
-            math.sqrt(vx * vx + vy * vy + vz * vz)
-            + math.sqrt(wx * wx + wy * wy + wz * wz) * shape.radius_max
-            + shape.speed_max
+        w = angular_velocity(shape, s[10], s[11], s[12])
+        reach = contact_reach_m(
+            s[3:6], w, shape.radius_max, shape.speed_max, self._dt, self.config.gravity_m_s2
         )
-        dt = self._dt
-        # Generous bound on how far a mass can fall within the step (speeds may double).
-        reach = 2.0 * speed * dt + (self.config.gravity_m_s2 + 100.0) * dt * dt
         return tuple(i for i, z in enumerate(heights) if z <= reach)
 
     def _current_shape(self) -> Shape:
