@@ -15,9 +15,8 @@ import logging
 import sys
 
 from splitter_bringup.analysis.flight_frames import DEFAULT_FPS
-from splitter_bringup.cli.bag_figures import add_bag_figure_arguments
+from splitter_bringup.cli.bag_figures import add_bag_figure_arguments, read_bag_figure_input
 from splitter_bringup.figures.flight_animation import write_animation
-from splitter_bringup.run.run_bag import contact_forces_from_bag
 
 _log = logging.getLogger(__name__)
 
@@ -32,10 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Read the bag, render, print what was written; 1 on an unreadable bag, 2 on bad options."""
-    from splitter_bag.core.metadata import MetadataError
-    from splitter_bringup.analysis.bag_series import BagSeriesError
     from splitter_bringup.figures.animation import FORMATS
-    from splitter_bringup.run.run_bag import read_run_series
 
     if args.out.suffix.lower() not in FORMATS:
         print(f"splitter animate: --out must end in {' or '.join(FORMATS)}", file=sys.stderr)
@@ -43,16 +39,13 @@ def main(args: argparse.Namespace) -> int:
     if not args.fps > 0.0 or args.width < 16 or args.height < 16:
         print("splitter animate: --fps must be > 0 and the size >= 16 px", file=sys.stderr)
         return 2
-    try:
-        series = read_run_series(args.bag, gravity_m_s2=args.gravity)
-        contact = contact_forces_from_bag(args.bag, series.t_s)
-    except (BagSeriesError, MetadataError, FileNotFoundError) as exc:
-        print(f"splitter animate: {exc}", file=sys.stderr)
+    bag = read_bag_figure_input(args, "animate", contact_forces=True)
+    if bag is None:
         return 1
-    title = args.title or args.bag.resolve().name
+    series, contact = bag.series, bag.contact_forces_n
     size = (args.width // 2 * 2, args.height // 2 * 2)
     info = write_animation(
-        series, args.out, title, fps=args.fps, size_px=size, contact_forces_n=contact
+        series, args.out, bag.title, fps=args.fps, size_px=size, contact_forces_n=contact
     )
     print(
         json.dumps(

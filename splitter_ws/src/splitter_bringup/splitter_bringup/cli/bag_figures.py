@@ -1,9 +1,22 @@
-"""The arguments shared by the verbs that draw a recorded bag (``splitter plot``, ``animate``)."""
+"""What the verbs that draw a recorded bag share (``splitter plot``, ``animate``).
+
+Their arguments (:func:`add_bag_figure_arguments`) and the reading of the bag
+(:func:`read_bag_figure_input`).
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from splitter_bringup.analysis.series import RunSeries
 
 
 def add_bag_figure_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
@@ -17,3 +30,29 @@ def add_bag_figure_arguments(parser: argparse.ArgumentParser, out_help: str) -> 
         help="gravity [m/s^2] (default: the bag's custom_data, else 0)",
     )
     parser.add_argument("--title", default="", help="figure title (default: the bag's name)")
+
+
+@dataclass(frozen=True)
+class BagFigureInput:
+    """What a verb draws: the bag's series, its title and (when asked) the contact forces."""
+
+    series: RunSeries
+    title: str
+    contact_forces_n: NDArray[np.float64] | None = None  # (n, 2, 3) [N], None: not recorded
+
+
+def read_bag_figure_input(
+    args: argparse.Namespace, verb: str, *, contact_forces: bool = False
+) -> BagFigureInput | None:
+    """``args.bag`` read for ``splitter <verb>``; None (the reason printed) if unreadable."""
+    from splitter_bag.core.metadata import MetadataError
+    from splitter_bringup.analysis.bag_series import BagSeriesError
+    from splitter_bringup.run.run_bag import contact_forces_from_bag, read_run_series
+
+    try:
+        series = read_run_series(args.bag, gravity_m_s2=args.gravity)
+        contact = contact_forces_from_bag(args.bag, series.t_s) if contact_forces else None
+    except (BagSeriesError, MetadataError, FileNotFoundError) as exc:
+        print(f"splitter {verb}: {exc}", file=sys.stderr)
+        return None
+    return BagFigureInput(series, args.title or args.bag.resolve().name, contact)

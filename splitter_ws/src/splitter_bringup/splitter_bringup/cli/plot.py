@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-from splitter_bringup.cli.bag_figures import add_bag_figure_arguments
+from splitter_bringup.cli.bag_figures import add_bag_figure_arguments, read_bag_figure_input
 from splitter_bringup.figures.trajectory import plot_trajectory, trajectory_summary
 
 
@@ -24,17 +23,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from splitter_bag.core.metadata import MetadataError
-    from splitter_bringup.analysis.bag_series import BagSeriesError
     from splitter_bringup.figures.plots import plot_flight, plot_quaternion_map
-    from splitter_bringup.run.run_bag import read_run_series
 
-    try:
-        series = read_run_series(args.bag, gravity_m_s2=args.gravity)
-    except (BagSeriesError, MetadataError, FileNotFoundError) as exc:
-        print(f"splitter plot: {exc}", file=sys.stderr)
+    bag = read_bag_figure_input(args, "plot")
+    if bag is None:
         return 1
-    title = args.title or args.bag.resolve().name
+    series, title = bag.series, bag.title
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     written = [
