@@ -18,6 +18,7 @@ from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODES = ("lockstep", "real_time")
+OUTPUT_PERIOD_S = (1e-4, 100.0)  # [s] range of the markers' and diagnostics' periods
 
 
 @dataclass(frozen=True)
@@ -68,10 +69,10 @@ class SimulatorSettings:
     markers_period_s: float = parameter_field(
         0.04,
         "markers and scene period, simulated time, a multiple of dt_s [s]",
-        bounds=(1e-4, 100.0),
+        bounds=OUTPUT_PERIOD_S,
     )
     diagnostics_period_s: float = parameter_field(
-        0.1, "diagnostics period, simulated time, a multiple of dt_s [s]", bounds=(1e-4, 100.0)
+        0.1, "diagnostics period, simulated time, a multiple of dt_s [s]", bounds=OUTPUT_PERIOD_S
     )
     progress_period_s: float = parameter_field(
         1.0, "period of the 't = ... s' progress log line, simulated time [s]", bounds=(1e-3, 1e6)

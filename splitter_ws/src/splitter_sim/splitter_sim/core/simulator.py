@@ -83,6 +83,8 @@ def _boolean(name: str, value: object) -> None:
         raise ValueError(f"SimConfig.{name} must be a bool, got {value!r}")
 
 
+# [N/m] or [N s/m] the range of a leg stiffness and of a (contact or leg) damping
+_GAIN_RANGE = (0.0, 1e6)
 # What SimConfig's fields must be, besides the range of their node parameter (which a
 # config built in code does not pass through).
 _POSITIVE = ("dt_s", "contact_stiffness_n_m", "friction_damping_n_s_m", "leg_force_max_n")
@@ -121,7 +123,7 @@ class SimConfig:
         5.0e4, "ground stiffness per lumped mass [N/m]", bounds=(1.0, 1e8)
     )
     contact_damping_n_s_m: float = parameter_field(
-        1.0e3, "ground damping per lumped mass [N s/m]", bounds=(0.0, 1e6)
+        1.0e3, "ground damping per lumped mass [N s/m]", bounds=_GAIN_RANGE
     )
     friction_coefficient: float = parameter_field(
         0.8, "Coulomb friction coefficient mu [-]", bounds=(0.0, 10.0)
@@ -145,13 +147,13 @@ class SimConfig:
         False, "stance legs under impedance control over the stroke (splitter_sim.core.legs)"
     )
     leg_stiffness_n_m: float = parameter_field(
-        40.0, "stiffness of a hemi's legs in stance [N/m]", bounds=(0.0, 1e6)
+        40.0, "stiffness of a hemi's legs in stance [N/m]", bounds=_GAIN_RANGE
     )
     leg_damping_n_s_m: float = parameter_field(
-        200.0, "vertical damping of a hemi's legs in stance [N s/m]", bounds=(0.0, 1e6)
+        200.0, "vertical damping of a hemi's legs in stance [N s/m]", bounds=_GAIN_RANGE
     )
     leg_tangential_damping_n_s_m: float = parameter_field(
-        20.0, "horizontal damping of a hemi's planted legs in stance [N s/m]", bounds=(0.0, 1e6)
+        20.0, "horizontal damping of a hemi's planted legs in stance [N s/m]", bounds=_GAIN_RANGE
     )
     leg_force_max_n: float = parameter_field(
         190.0, "largest stance force of a hemi's legs (the limbs' limit) [N]", bounds=(1e-3, 1e5)
