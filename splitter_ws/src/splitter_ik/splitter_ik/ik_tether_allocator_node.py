@@ -70,12 +70,7 @@ from splitter_msgs_py.conversions import (
     vector3_from_msg,
 )
 from splitter_msgs_py.core.stamps import MessageValidationError
-from splitter_msgs_py.node_pattern import (
-    admitted_stamp,
-    on_sim_time_by_default,
-    run_node,
-    sim_clock_ns,
-)
+from splitter_msgs_py.node_pattern import admitted_stamp, default_sim_time, run_node, sim_clock_ns
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
     ParameterValue,
@@ -104,7 +99,7 @@ class IkTetherAllocatorNode(Node):
     """Answers inertia setpoints with rate-limited, taut-tether joint commands."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, **on_sim_time_by_default(kwargs))
+        super().__init__(NODE_NAME, **default_sim_time(kwargs))
         try:
             values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             self.core = AllocatorTick(

@@ -56,12 +56,7 @@ from splitter_msgs_py.conversions import (
     twist_from_msg,
     vector3_to_msg,
 )
-from splitter_msgs_py.node_pattern import (
-    admitted_stamp,
-    on_sim_time_by_default,
-    run_node,
-    sim_clock_ns,
-)
+from splitter_msgs_py.node_pattern import admitted_stamp, default_sim_time, run_node, sim_clock_ns
 from splitter_msgs_py.node_status import publish_status
 from splitter_msgs_py.parameters import (
     InvalidParameterError,
@@ -125,7 +120,7 @@ class InertialMorphingMpcNode(Node):
     """Answers each control tick's imu + inertia with an inertia setpoint."""
 
     def __init__(self, stop: StopRequest | None = None, **kwargs) -> None:
-        super().__init__(NODE_NAME, **on_sim_time_by_default(kwargs))
+        super().__init__(NODE_NAME, **default_sim_time(kwargs))
         try:
             values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             try:

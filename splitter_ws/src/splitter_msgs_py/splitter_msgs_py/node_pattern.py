@@ -7,7 +7,7 @@
   ``KeyboardInterrupt`` and ``ExternalShutdownException`` end it quietly;
   ``destroy_node`` and ``try_shutdown`` always run.
 * :func:`sim_clock_ns` is a node's simulated time (None before ``/clock``);
-  :func:`on_sim_time_by_default` starts a node on it unless told otherwise.
+  :func:`default_sim_time` starts a node on it unless told otherwise.
 * :func:`admitted_stamp` applies the stamp rules of
   :class:`~splitter_msgs_py.core.stamps.StampGate` to a message and turns a
   rejection into a throttled warning (counted for ``/diagnostics``).
@@ -73,7 +73,7 @@ def run_node(
     return 0 if node is None or exit_code is None else exit_code(node)
 
 
-def on_sim_time_by_default(node_kwargs: dict[str, Any]) -> dict[str, Any]:
+def default_sim_time(node_kwargs: dict[str, Any]) -> dict[str, Any]:
     """A node's keyword arguments with ``use_sim_time`` True unless an override names it."""
     overrides = list(node_kwargs.get("parameter_overrides") or [])
     if not any(p.name == USE_SIM_TIME for p in overrides):

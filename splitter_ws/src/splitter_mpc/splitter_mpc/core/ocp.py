@@ -246,12 +246,7 @@ def _weight_field(
 ) -> Any:
     """A weight the MPC node exposes as a live parameter in ``[min_value, MAX_WEIGHT]``."""
     return parameter_field(
-        default,
-        description,
-        min_value=min_value,
-        max_value=MAX_WEIGHT,
-        length=length,
-        live=True,
+        default, description, bounds=(min_value, MAX_WEIGHT), length=length, live=True
     )
 
 
