@@ -9,6 +9,7 @@ never exceeds them; the allocator plans within them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,3 +50,66 @@ def actuator_limits(model: RobotModel) -> ActuatorLimits:
     accel = np.full(N_JOINTS, model.joint_acceleration_max_rad_s2)
     accel[TETHER_INDEX] = model.tether_acceleration_max_m_s2
     return ActuatorLimits(lo, hi, speed, accel)
+
+
+class CommandLag:
+    """A first-order lag between the joint commands sent and what the servos follow.
+
+    ``dx/dt = (u - x) / tau`` on every command (position and velocity alike),
+    ``u`` held over a command period ``period_s``: exactly
+    ``x_{k+1} = x_k + alpha (u_k - x_k)``, ``alpha = 1 - exp(-period / tau)``
+    (``tau = 0``: no lag, ``alpha = 1``). The one actuator model: the simulated
+    robot's servos follow :meth:`apply`; the allocator, which knows what it sent,
+    runs the same recursion in :meth:`lead` to send the command whose lagged value
+    is the one it wants now (``u_k = x_k + (d_k - x_k) / alpha``).
+    """
+
+    def __init__(self, time_constant_s: float, period_s: float) -> None:
+        if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
+            raise ValueError(f"lag time constant must be finite and >= 0, got {time_constant_s!r}")
+        if not (math.isfinite(period_s) and period_s > 0.0):
+            raise ValueError(f"command period must be finite and > 0, got {period_s!r}")
+        self.time_constant_s = float(time_constant_s)  # [s]
+        self.alpha = 1.0 if time_constant_s == 0.0 else -math.expm1(-period_s / time_constant_s)
+        self._state: tuple[NDArray[np.float64], ...] | None = None
+
+    @property
+    def state(self) -> tuple[NDArray[np.float64], ...] | None:
+        """The lagged commands now (None before the first)."""
+        return self._state
+
+    def apply(self, *command: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """The lagged values of the commands ``u_k`` just sent (the first passes through)."""
+        u = tuple(np.array(c, dtype=float) for c in command)
+        if self._state is None or self.alpha == 1.0:
+            self._state = u
+        else:
+            self._state = tuple(
+                x + self.alpha * (c - x) for x, c in zip(self._state, u, strict=True)
+            )
+        return self._state
+
+    def lead(
+        self,
+        position: NDArray[np.float64],
+        velocity: NDArray[np.float64],
+        limits: ActuatorLimits | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The joint command to send so that the lagged one becomes (position, velocity).
+
+        Within ``limits`` (a command outside the joint range or the actuator speed is
+        invalid whatever follows it): clipped there, and the lag state advanced by
+        what is sent, so the next command makes up the rest.
+        """
+        d = (np.array(position, dtype=float), np.array(velocity, dtype=float))
+        if self._state is None or self.alpha == 1.0:
+            sent = d
+        else:
+            sent = tuple(x + (c - x) / self.alpha for x, c in zip(self._state, d, strict=True))
+        if limits is not None:
+            sent = (
+                np.clip(sent[0], limits.position_min, limits.position_max),
+                np.clip(sent[1], -limits.speed_max, limits.speed_max),
+            )
+        self.apply(*sent)
+        return sent[0], sent[1]
