@@ -1,0 +1,113 @@
+"""The flight estimator against a torque-free flight of a robot with other masses."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from splitter_model.model import RobotModel, principal_inertia
+from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator, model_with_ratios
+
+DT_S = 0.01  # [s] control tick
+SUBSTEPS = 20  # truth integrated at 0.5 ms
+
+
+def _radii(t_s: float) -> np.ndarray:
+    """A morphing shape: tether and limbs move as the MPC moves them [m]."""
+    return np.array(
+        [
+            2.2 + 0.5 * np.sin(0.7 * t_s),
+            0.27 + 0.08 * np.sin(1.3 * t_s),
+            0.25 + 0.1 * np.cos(0.9 * t_s),
+        ]
+    )
+
+
+def _fly(plant: RobotModel, w0, duration_s: float):
+    """Body rates of torque-free flight at each tick (RK4 of dh/dt = -w x h, h = I(t) w)."""
+    h = principal_inertia(plant, _radii(0.0)) * np.asarray(w0, dtype=float)
+    rates = [h / principal_inertia(plant, _radii(0.0))]
+    dt = DT_S / SUBSTEPS
+    t = 0.0
+    for _ in range(round(duration_s / DT_S)):
+        for _ in range(SUBSTEPS):
+
+            def f(hh, tt):
+                return -np.cross(hh / principal_inertia(plant, _radii(tt)), hh)
+
+            k1 = f(h, t)
+            k2 = f(h + 0.5 * dt * k1, t + 0.5 * dt)
+            k3 = f(h + 0.5 * dt * k2, t + 0.5 * dt)
+            k4 = f(h + dt * k3, t + dt)
+            h = h + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+            t += dt
+        rates.append(h / principal_inertia(plant, _radii(t)))
+    return np.array(rates)
+
+
+def _estimate(plant: RobotModel, bias, noise: float, duration_s: float = 8.0, seed: int = 1):
+    rates = _fly(plant, (0.4, 0.9, -0.5), duration_s)
+    rng = np.random.default_rng(seed)
+    estimator = FlightEstimator(RobotModel(), EstimatorConfig())
+    for k, w in enumerate(rates):
+        gyro = w + np.asarray(bias) + rng.normal(0.0, noise, 3)
+        t_ns = k * round(DT_S * 1e9)
+        if k == 0:
+            estimator.start(t_ns, gyro, _radii(0.0), (1.0, 0.0, 0.0, 0.0))
+        estimate = estimator.update(t_ns, gyro, _radii(k * DT_S))
+    return estimate, rates[-1]
+
+
+def _true_ratios(plant: RobotModel) -> np.ndarray:
+    return np.array(
+        [plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg]
+    )
+
+
+def test_gyro_bias_and_mass_ratios_are_found_in_a_morphing_tumble():
+    nominal = RobotModel()
+    plant = replace(
+        nominal,
+        body_mass_kg=nominal.body_mass_kg * 1.08,
+        limb_mass_y_kg=nominal.limb_mass_y_kg * 0.92,
+        limb_mass_z_kg=nominal.limb_mass_z_kg * 1.05,
+    )
+    bias = np.array([0.004, -0.005, 0.003])
+    estimate, w_end = _estimate(plant, bias, noise=0.002)
+    np.testing.assert_array_less(np.abs(estimate.gyro_bias_rad_s - bias), 0.001)
+    np.testing.assert_array_less(np.abs(estimate.mass_ratios / _true_ratios(plant) - 1.0), 0.03)
+    np.testing.assert_array_less(np.abs(estimate.angular_velocity_rad_s - w_end), 0.002)
+    # the covariance says so too (1-sigma of the bias below the error bound)
+    assert np.all(estimate.bias_std_rad_s < 0.001)
+
+
+def test_a_common_mass_scale_is_not_an_error_of_the_ratios():
+    nominal = RobotModel()
+    heavier = replace(
+        nominal,
+        body_mass_kg=nominal.body_mass_kg * 1.1,
+        limb_mass_y_kg=nominal.limb_mass_y_kg * 1.1,
+        limb_mass_z_kg=nominal.limb_mass_z_kg * 1.1,
+    )
+    estimate, _ = _estimate(heavier, np.zeros(3), noise=0.0005)
+    np.testing.assert_allclose(estimate.mass_ratios, _true_ratios(nominal), rtol=0.01)
+    # the inertia the controllers use: the true one over the unobservable scale
+    ratio = estimate.principal_inertia_kg_m2 / principal_inertia(heavier, _radii(8.0))
+    np.testing.assert_allclose(ratio, 1.0 / 1.1, rtol=0.01)
+
+
+def test_ratios_scale_only_the_limb_masses():
+    nominal = RobotModel()
+    model = model_with_ratios(nominal, (np.log(1.2), np.log(0.9)))
+    assert model.body_mass_kg == nominal.body_mass_kg
+    assert model.limb_mass_y_kg == pytest.approx(1.2 * nominal.limb_mass_y_kg)
+    assert model.limb_mass_z_kg == pytest.approx(0.9 * nominal.limb_mass_z_kg)
+
+
+def test_update_before_start_and_backwards_time_are_refused():
+    estimator = FlightEstimator(RobotModel())
+    with pytest.raises(RuntimeError, match="before start"):
+        estimator.update(0, np.zeros(3), _radii(0.0))
+    estimator.start(10, np.zeros(3), _radii(0.0), (1.0, 0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="went back"):
+        estimator.update(5, np.zeros(3), _radii(0.0))
