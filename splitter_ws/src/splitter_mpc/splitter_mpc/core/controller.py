@@ -224,6 +224,10 @@ class MorphingController(Closable):
         """Weights for the following solves (the built problem is reused)."""
         self.weights = weights
 
+    def set_mass_model(self, model: RobotModel) -> None:
+        """Plan with these masses from the next solve (an estimate; same geometry)."""
+        self.mpc.set_mass_model(model)
+
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""
         self._failures_to_inject += int(count)

@@ -96,6 +96,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
+from splitter_model.reachable import inertia_map
 from splitter_mpc.core.limits import MorphingLimits, axis_inertia_range, morphing_limits
 from splitter_mpc.core.ocp import (
     INTEGRATORS,
@@ -304,6 +305,33 @@ class InertialMorphingMpc(Closable):
             s.dt_s, self.ocp.inertia_map, s.integrator, self.ocp.state
         ).expand()
         self._last: tuple[int, SolverResult] | None = None
+        self.mass_model = model
+        # [-] D with M_model = M_built D: the OCP, built with the model's masses, plans
+        # in s~ = D s (set_mass_model)
+        self.column_scale = np.ones(3)
+
+    def set_mass_model(self, model: RobotModel) -> None:
+        """Plan for a robot with other masses (the same geometry), without rebuilding.
+
+        Each column of the map ``I = M s`` (paper eq. 2) is one mass times a constant:
+        ``m_tether = 2 m_x + 4 m_y + 4 m_z`` for ``r_x^2``, ``4 m_y`` for ``r_y^2``,
+        ``4 m_z`` for ``r_z^2``. So ``M_model = M_built D`` with D diagonal, and the
+        built OCP in the scaled coordinates ``s~ = D s`` is exactly the model's: the
+        dynamics and costs are the built ones, and the box bounds on ``s`` and its rate
+        become box bounds on ``s~`` scaled by D (:meth:`problem`). The tension row keeps
+        the built ``m_x`` (the estimator keeps the nominal ``m_x``).
+        """
+        built = self.ocp.inertia_map
+        wanted = inertia_map(model)
+        scale = np.array(
+            [wanted[1, 0] / built[1, 0], wanted[0, 1] / built[0, 1], wanted[0, 2] / built[0, 2]]
+        )
+        if not np.allclose(wanted, built * scale[None, :], rtol=1e-12, atol=0.0):
+            raise ValueError("set_mass_model: the model's geometry differs from the built one")
+        self.mass_model = model
+        self.column_scale = scale
+        s = self.settings
+        self.limits = morphing_limits(model, s.dt_s, s.tension_min_n, s.radius_rate_scale)
 
     @property
     def horizon(self) -> int:
@@ -378,7 +406,7 @@ class InertialMorphingMpc(Closable):
             angular_velocity=xs[:, layout.w],
             orientation=xs[:, layout.q] if layout.attitude else None,
             inertia=self.ocp.inertia_of(xs),
-            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq], 0.0)),
+            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq] / self.column_scale, 0.0)),
             result=result,
         )
 
@@ -391,10 +419,14 @@ class InertialMorphingMpc(Closable):
             )
         weights = request.weights.per_stage(self.settings.weights_step_ratio)
         measured = np.asarray(request.state, dtype=float).reshape(N_MEASURED)
-        x0 = self.ocp.state_from_measurement(measured[0:3], measured[3:7], measured[7:10])
+        x0 = self.ocp.state_from_measurement(
+            measured[0:3], measured[3:7], measured[7:10], self.limits.reachable
+        )
+        scale = self.column_scale
+        x0[self.ocp.state.radii_sq] *= scale
         z0, lam_g0, lam_z0 = self._warm_start(int(request.t_ns), x0)
-        lbz, ubz = self.ocp.variable_bounds(x0)
-        lbg, ubg = self.ocp.constraint_bounds(x0)
+        lbz, ubz = self.ocp.variable_bounds(x0, scale)
+        lbg, ubg = self.ocp.constraint_bounds(x0, scale)
         momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
         axis, _ = momentum_target(request.w_ref_rad_s, momentum_norm)
         nominal = request.nominal_inertia_kg_m2

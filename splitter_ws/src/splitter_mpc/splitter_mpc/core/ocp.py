@@ -61,6 +61,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.reachable import ReachableSet
 from splitter_model.rotations import quaternion_product
 from splitter_mpc.core.limits import MorphingLimits
 from splitter_msgs_py.core.parameter_fields import parameter_field
@@ -432,14 +433,19 @@ class MorphingOcp:
         return self.limits.reachable.inertia_map
 
     def state_from_measurement(
-        self, angular_velocity: ArrayLike, orientation_wxyz: ArrayLike, inertia: ArrayLike
+        self,
+        angular_velocity: ArrayLike,
+        orientation_wxyz: ArrayLike,
+        inertia: ArrayLike,
+        reachable: ReachableSet | None = None,
     ) -> NDArray[np.float64]:
         """x_0 = (w, q / |q|, s): squared radii of the reachable moments nearest the measured.
 
         Nearest in principal inertia (:meth:`~splitter_model.reachable.ReachableSet.project`,
-        the allocator's projection too). Without attitude states q is left out: ``(w, s)``.
+        the allocator's projection too) of ``reachable`` (default: the built model's).
+        Without attitude states q is left out: ``(w, s)``.
         """
-        s_sq = self.limits.reachable.project(inertia)
+        s_sq = (reachable or self.limits.reachable).project(inertia)
         w = np.asarray(angular_velocity, dtype=float)
         if not self.state.attitude:
             return np.concatenate([w, s_sq])
@@ -450,19 +456,27 @@ class MorphingOcp:
         """Principal moments (..., 3) of states (..., nx)."""
         return np.asarray(states, dtype=float)[..., self.state.radii_sq] @ self.inertia_map.T
 
-    def variable_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
-        """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0."""
+    def variable_bounds(
+        self, x_init: ArrayLike, column_scale: ArrayLike = (1.0, 1.0, 1.0)
+    ) -> tuple[NDArray, NDArray]:
+        """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0.
+
+        ``column_scale`` D: the states carry ``D s`` (a robot with other masses,
+        :meth:`~splitter_mpc.core.mpc.InertialMorphingMpc.set_mass_model`).
+        """
         lim = self.limits
+        d = np.asarray(column_scale, dtype=float)
         n, nx, radii_sq = self.horizon, self.state.nx, self.state.radii_sq
         x0 = np.asarray(x_init, dtype=float)
-        r_now = np.sqrt(x0[radii_sq])
+        r_now = np.sqrt(x0[radii_sq] / d)
         # both r_k and r_{k+1} are >= the smallest radius reachable by stage k + 1
         k = np.arange(1, n + 1)[:, None]
         r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
-        rate = 2.0 * lim.radius_step_max_m * r_low  # (n, 3) [m^2] per step
+        rate = 2.0 * lim.radius_step_max_m * r_low * d  # (n, 3) [m^2] per step
         lo = np.full((n, nx + NU), -np.inf)
         hi = np.full((n, nx + NU), np.inf)
-        s_min, s_max = lim.reachable.radius_squared_min_m2, lim.reachable.radius_squared_max_m2
+        s_min = lim.reachable.radius_squared_min_m2 * d
+        s_max = lim.reachable.radius_squared_max_m2 * d
         lo[:, radii_sq] = s_min
         hi[:, radii_sq] = s_max
         lo[:, nx : nx + 3] = -rate
@@ -476,11 +490,15 @@ class MorphingOcp:
         hi_n[radii_sq] = s_max
         return np.concatenate([lo.ravel(), lo_n]), np.concatenate([hi.ravel(), hi_n])
 
-    def constraint_bounds(self, x_init: ArrayLike) -> tuple[NDArray, NDArray]:
-        """(lbg, ubg): gaps = 0, tension rows (module docstring)."""
+    def constraint_bounds(
+        self, x_init: ArrayLike, column_scale: ArrayLike = (1.0, 1.0, 1.0)
+    ) -> tuple[NDArray, NDArray]:
+        """(lbg, ubg): gaps = 0, tension rows (module docstring); ``column_scale`` as
+        in :meth:`variable_bounds`."""
         lim = self.limits
         n, nx = self.horizon, self.state.nx
-        r_x = float(np.sqrt(np.asarray(x_init, dtype=float)[self.state.radii_sq][0]))
+        s_x = float(np.asarray(x_init, dtype=float)[self.state.radii_sq][0])
+        r_x = float(np.sqrt(s_x / float(np.asarray(column_scale, dtype=float)[0])))
         k = np.arange(n)
         r_low = np.maximum(lim.radius_min_m[0], r_x - lim.radius_rate_max_m_s[0] * k * self.dt_s)
         lo = np.zeros((n, nx + NG_PATH))
