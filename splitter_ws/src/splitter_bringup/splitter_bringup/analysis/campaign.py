@@ -100,6 +100,9 @@ class PerturbationSpec:
     gyro_noise_rad_s: float = 0.0  # [rad/s] white noise std per axis and reading
     gyro_bias_rad_s: float = 0.0  # [rad/s] bias drawn uniform in +- this per axis
     actuator_lag_s: float = 0.0  # [s] first-order lag time constant of the joint commands
+    # the controllers fly on the flight estimator (splitter_mpc.core.estimator) and lead
+    # their commands through the actuators' lag; False: they read the sensors as they are
+    estimator: bool = True
 
     def __post_init__(self) -> None:
         for name, value in self.as_dict().items():
@@ -115,7 +118,7 @@ class PerturbationSpec:
 
     def as_dict(self) -> dict[str, float]:
         """Each perturbation by its field name."""
-        return asdict(self)
+        return {k: v for k, v in asdict(self).items() if k != "estimator"}
 
 
 @dataclass(frozen=True)
@@ -331,6 +334,9 @@ class DrawResult:
     mpc_deadline_misses: int
     wall_time_s: float  # [s] the draw, controller start-up included
     error: str = ""
+    # the flight estimator's errors at the last estimate (NaN: flown without it)
+    gyro_bias_error_rad_s: float = math.nan  # [rad/s] largest |b_est - b_true| per axis
+    mass_ratio_error: float = math.nan  # [-] largest |r_est / r_true - 1| of m_y/m_x, m_z/m_x
 
     @property
     def outcome(self) -> str:
@@ -351,6 +357,7 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         deadline_misses=misses,
     )
     w_end = series.angular_velocity_rad_s[-1] if n else (math.nan,) * 3
+    bias_error, ratio_error = estimation_errors(draw, extras)
     return DrawResult(
         draw=draw,
         success=result.success,
@@ -361,7 +368,27 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         mpc_failures=failures,
         mpc_deadline_misses=misses,
         wall_time_s=wall_time_s,
+        gyro_bias_error_rad_s=bias_error,
+        mass_ratio_error=ratio_error,
     )
+
+
+def estimation_errors(draw: Draw, extras: Mapping[str, Any]) -> tuple[float, float]:
+    """(largest gyro bias error [rad/s], largest relative mass-ratio error [-]) at the end.
+
+    Against the draw's true bias and masses (:func:`plant_model`); NaN when the flight
+    had no estimator.
+    """
+    if "estimate_gyro_bias_rad_s" not in extras or len(extras["estimate_gyro_bias_rad_s"]) == 0:
+        return math.nan, math.nan
+    bias = np.asarray(extras["estimate_gyro_bias_rad_s"][-1], dtype=float)
+    bias_error = float(np.max(np.abs(bias - np.asarray(draw.gyro_bias_rad_s))))
+    plant = plant_model(draw)
+    true_ratios = np.array(
+        [plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg]
+    )
+    ratios = np.asarray(extras["estimate_mass_ratios"][-1], dtype=float)
+    return bias_error, float(np.max(np.abs(ratios / true_ratios - 1.0)))
 
 
 def error_result(draw: Draw, message: str, wall_time_s: float = math.nan) -> DrawResult:
@@ -406,6 +433,9 @@ class CampaignSummary:
     mpc_deadline_misses: int
     draw_wall_time_s: float  # [s] summed over the draws (CPU-ish time of the campaign)
     extra: Mapping[str, Any] = field(default_factory=dict)
+    # the flight estimator's errors over the draws that had one (NaN: none had)
+    gyro_bias_error_p95_rad_s: float = math.nan  # [rad/s]
+    mass_ratio_error_p95: float = math.nan  # [-]
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -420,6 +450,8 @@ class CampaignSummary:
             "mpc_failures": self.mpc_failures,
             "mpc_deadline_misses": self.mpc_deadline_misses,
             "draw_wall_time_s": _json_number(self.draw_wall_time_s),
+            "gyro_bias_error_p95_rad_s": _json_number(self.gyro_bias_error_p95_rad_s),
+            "mass_ratio_error_p95": _json_number(self.mass_ratio_error_p95),
             **dict(self.extra),
         }
 
@@ -443,6 +475,13 @@ def summarize(results: Sequence[DrawResult]) -> CampaignSummary:
         mpc_failures=sum(r.mpc_failures for r in results),
         mpc_deadline_misses=sum(r.mpc_deadline_misses for r in results),
         draw_wall_time_s=float(sum(r.wall_time_s for r in results if math.isfinite(r.wall_time_s))),
+        gyro_bias_error_p95_rad_s=_percentile(
+            [r.gyro_bias_error_rad_s for r in results if math.isfinite(r.gyro_bias_error_rad_s)],
+            95.0,
+        ),
+        mass_ratio_error_p95=_percentile(
+            [r.mass_ratio_error for r in results if math.isfinite(r.mass_ratio_error)], 95.0
+        ),
     )
 
 
@@ -524,6 +563,8 @@ CSV_COLUMNS = (
     "gyro_bias_y_rad_s",
     "gyro_bias_z_rad_s",
     "error",
+    "gyro_bias_error_rad_s",
+    "mass_ratio_error",
 )
 
 
@@ -551,6 +592,8 @@ def csv_row(result: DrawResult) -> dict[str, Any]:
                 *(repr(v) for v in d.mass_scale),
                 *(repr(v) for v in d.gyro_bias_rad_s),
                 result.error,
+                _csv_number(result.gyro_bias_error_rad_s),
+                _csv_number(result.mass_ratio_error),
             ),
             strict=True,
         )

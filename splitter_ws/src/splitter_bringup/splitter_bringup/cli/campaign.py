@@ -136,6 +136,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="first-order lag of every joint and tether command, time constant [s] "
         f"(flag alone: {DEFAULT_ACTUATOR_LAG_S})",
     )
+    perturb.add_argument(
+        "--no-estimator",
+        action="store_true",
+        help="perturbed draws: the controllers read the gyro and the nominal model as they "
+        "are (default: they fly on the flight estimator of gyro bias and mass ratios, and "
+        "lead their commands through the actuators' lag)",
+    )
     parser.add_argument(
         "--replay",
         type=int,
@@ -158,6 +165,7 @@ def _spec(args: argparse.Namespace) -> PerturbationSpec:
         gyro_noise_rad_s=args.imu_noise,
         gyro_bias_rad_s=args.imu_bias,
         actuator_lag_s=args.actuator_lag,
+        estimator=not args.no_estimator,
     )
 
 
@@ -185,6 +193,8 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
     ):
         if value > 0.0:
             words += [flag, repr(value)]
+    if args.no_estimator:
+        words.append("--no-estimator")
     words += ["--out", str(out)]
     return shlex.join(words)
 
@@ -209,6 +219,12 @@ def _print_summary(summary: dict[str, Any], title: str) -> None:
     med, p90 = summary["settling_time_median_s"], summary["settling_time_p90_s"]
     if med is not None:
         print(f"  settling time median {med:.2f} s, p90 {p90:.2f} s")
+    bias, ratio = summary.get("gyro_bias_error_p95_rad_s"), summary.get("mass_ratio_error_p95")
+    if bias is not None:
+        print(
+            f"  estimator at the end, p95 over draws: gyro bias error {bias:.5f} rad/s, "
+            f"mass ratio error {100 * ratio:.2f} %"
+        )
     print(f"  wall time {summary['wall_time_s']:.1f} s")
 
 

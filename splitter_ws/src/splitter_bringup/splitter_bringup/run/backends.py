@@ -26,6 +26,7 @@ from splitter_bringup.scenario.definition import Scenario
 
 if TYPE_CHECKING:  # the library loop and the MPC load only when a run starts
     from splitter_bringup.run.library import Perturbation, ProgressCallback
+    from splitter_mpc.core.estimator import EstimatorConfig
     from splitter_mpc.core.mpc import MpcSettings
 
 LIBRARY = "library"
@@ -52,6 +53,7 @@ def run_variant(
     out_dir: Path | None = None,
     mpc: MpcSettings | None = None,
     perturbation: Perturbation | None = None,
+    estimation: EstimatorConfig | None = None,
     progress: ProgressCallback | None = None,
     domain_id: int | None = None,
 ) -> VariantRun:
@@ -63,13 +65,13 @@ def run_variant(
     logs, parameter files), ``domain_id`` None chooses a free ROS domain.
     """
     if backend == LIBRARY:
-        return _run_library(scenario, mpc, perturbation, progress)
+        return _run_library(scenario, mpc, perturbation, progress, estimation)
     if backend not in BACKENDS:
         raise ValueError(f"backend {backend!r} is not one of {BACKENDS}")
     if out_dir is None:
         raise ValueError(f"the {backend} backend records a bag: it needs out_dir")
-    if perturbation is not None or mpc is not None:
-        raise ValueError("perturbation and mpc settings are library-backend options")
+    if perturbation is not None or mpc is not None or estimation is not None:
+        raise ValueError("perturbation, estimation and mpc settings are library-backend options")
     return _run_graph(scenario, out_dir, in_process=backend == IN_PROCESS, domain_id=domain_id)
 
 
@@ -83,6 +85,7 @@ def _run_library(
     mpc: MpcSettings | None,
     perturbation: Perturbation | None,
     progress: ProgressCallback | None,
+    estimation: EstimatorConfig | None = None,
 ) -> VariantRun:
     from splitter_bringup.run.library import controller_config, run_closed_loop
     from splitter_model.model import RobotModel
@@ -93,7 +96,12 @@ def _run_library(
     with MorphingController(model, controller_config(scenario, mpc)) as controller:
         flying = time.monotonic()
         series = run_closed_loop(
-            scenario, progress, model=model, controller=controller, perturbation=perturbation
+            scenario,
+            progress,
+            model=model,
+            controller=controller,
+            perturbation=perturbation,
+            estimation=estimation,
         )
     return VariantRun(series, flying - started, time.monotonic() - flying)
 

@@ -50,7 +50,18 @@ def flight_perturbation(draw: Draw, spec: PerturbationSpec | None):
         gyro_bias_rad_s=draw.gyro_bias_rad_s,
         actuator_lag_s=spec.actuator_lag_s,
         seed=draw.noise_seed,
+        actuator_lag_model_s=None if spec.estimator else 0.0,
     )
+
+
+def flight_estimation(spec: PerturbationSpec | None):
+    """The estimator a draw's controllers fly on: on in a perturbed campaign (unless
+    ``spec.estimator`` is False), None in a nominal one (the nominal loop, bit for bit)."""
+    from splitter_mpc.core.estimator import EstimatorConfig
+
+    if spec is None or not spec.active or not spec.estimator:
+        return None
+    return EstimatorConfig()
 
 
 def fly_draw(
@@ -63,7 +74,12 @@ def fly_draw(
     scenario's MPC, a fresh controller and solver worker, so that a draw never depends
     on the ones flown before it.
     """
-    return run(scenario, LIBRARY, perturbation=flight_perturbation(draw, perturbation))
+    return run(
+        scenario,
+        LIBRARY,
+        perturbation=flight_perturbation(draw, perturbation),
+        estimation=flight_estimation(perturbation),
+    )
 
 
 def run_draw(

@@ -40,10 +40,12 @@ import numpy as np
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
 from splitter_bringup.scenario.graph_config import gait_parameters
-from splitter_ik.core.allocator_tick import AllocatorTick
-from splitter_model.actuators import TETHER_INDEX
+from splitter_ik.core.allocator_tick import AllocatorTick, AllocatorTickSettings
+from splitter_model.actuators import TETHER_INDEX, CommandLag
+from splitter_model.kinematics import radii_from_joint_positions
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
+from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator
 from splitter_mpc.core.gait_tick import BodyState, GaitTick, gait_settings_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.mpc_tick import MpcTick
@@ -81,6 +83,16 @@ class Perturbation:
     gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
     actuator_lag_s: float = 0.0  # [s] time constant, 0: none
     seed: int = 0  # of the gyro noise
+    # [s] the lag the robot's allocator leads its commands through (its actuator model);
+    # None: the true one (the robot knows its servos)
+    actuator_lag_model_s: float | None = None
+
+    @property
+    def modelled_actuator_lag_s(self) -> float:
+        """[s] the lag time constant the controllers assume."""
+        if self.actuator_lag_model_s is None:
+            return self.actuator_lag_s
+        return self.actuator_lag_model_s
 
     def __post_init__(self) -> None:
         for name in ("gyro_noise_rad_s", "actuator_lag_s"):
@@ -99,10 +111,7 @@ class _Perturbed:
         self._p = perturbation
         self._bias = np.asarray(perturbation.gyro_bias_rad_s, dtype=float)
         self._rng = np.random.default_rng(perturbation.seed)
-        tau = perturbation.actuator_lag_s
-        # exact discretisation of dx/dt = (u - x) / tau with u held over a tick
-        self._alpha = 1.0 if tau == 0.0 else -math.expm1(-control_period_s / tau)
-        self._command: tuple[np.ndarray, np.ndarray] | None = None
+        self._lag = CommandLag(perturbation.actuator_lag_s, control_period_s)
 
     def gyro(self, w_rad_s: np.ndarray) -> np.ndarray:
         """The rate gyro's reading of the true body rate ``w_rad_s`` [rad/s]."""
@@ -113,12 +122,8 @@ class _Perturbed:
 
     def command(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The joint command (position, velocity) the servos receive, lagged."""
-        if self._command is None or self._alpha == 1.0:
-            self._command = (np.array(q, dtype=float), np.array(qd, dtype=float))
-        else:
-            lq, lqd = self._command
-            self._command = (lq + self._alpha * (q - lq), lqd + self._alpha * (qd - lqd))
-        return self._command
+        position, velocity = self._lag.apply(q, qd)
+        return position, velocity
 
 
 def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
@@ -187,6 +192,7 @@ def run_closed_loop(
     fail_solves_at_s: tuple[float, ...] = (),
     duration_s: float | None = None,
     perturbation: Perturbation | None = None,
+    estimation: EstimatorConfig | None = None,
 ) -> RunSeries:
     """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
 
@@ -208,6 +214,7 @@ def run_closed_loop(
                 fail_solves_at_s=fail_solves_at_s,
                 duration_s=duration_s,
                 perturbation=perturbation,
+                estimation=estimation,
             )
     plant = None if perturbation is None else perturbation.plant_model
     sim = SimulatorTick(
@@ -219,7 +226,13 @@ def run_closed_loop(
     )
     gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
     mpc_tick = MpcTick(controller)
-    allocator = AllocatorTick(model)  # starts, as its node, from the first measured inertia
+    allocator = AllocatorTick(  # starts, as its node, from the first measured inertia
+        model,
+        settings=AllocatorTickSettings(
+            actuator_lag_s=0.0 if perturbation is None else perturbation.modelled_actuator_lag_s
+        ),
+    )
+    estimator = None if estimation is None else FlightEstimator(model, estimation)
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
     duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
     dt_ns = sim.sim.config.dt_ns
@@ -228,6 +241,7 @@ def run_closed_loop(
         raise ValueError(f"sim step {dt_ns} ns does not divide the control tick")
 
     rec: dict[str, list] = {k: [] for k in _RECORDED}
+    rec_est: list = []
     phases: list[str] = []
     setpoint = np.asarray(sim.state().principal_inertia_kg_m2, dtype=float)
     phase_name = ""
@@ -240,6 +254,26 @@ def run_closed_loop(
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
+            gyro = (  # the rate of the imu message
+                state.angular_velocity_rad_s
+                if perturbed is None
+                else perturbed.gyro(state.angular_velocity_rad_s)
+            )
+            inertia_used = state.principal_inertia_kg_m2
+            if estimator is not None:
+                radii_measured = radii_from_joint_positions(model, state.joint_position)
+                in_flight = not (
+                    bool(np.any(state.in_contact)) or bool(np.any(state.thrust_force_n))
+                )
+                if not estimator.started:
+                    estimator.start(t, gyro, radii_measured, q_measured)
+                estimate = estimator.update(t, gyro, radii_measured, in_flight=in_flight)
+                gyro = estimate.angular_velocity_rad_s
+                inertia_used = estimate.principal_inertia_kg_m2
+                estimated = estimator.estimated_model()
+                controller.set_mass_model(estimated)
+                allocator.set_mass_model(estimated)
+                rec_est.append((t, estimate))
             body = BodyState(
                 state.position_m, state.velocity_m_s, q_measured, state.angular_velocity_rad_s
             )
@@ -248,7 +282,7 @@ def run_closed_loop(
                 body,
                 state.contact_force_n,
                 float(state.joint_position[TETHER_INDEX]),
-                principal_inertia_kg_m2=state.principal_inertia_kg_m2,  # /splitter/inertia
+                principal_inertia_kg_m2=inertia_used,  # /splitter/inertia
             )
             if answer.error:
                 raise ValueError(f"gait phase manager at t = {t * 1e-9:.3f} s: {answer.error}")
@@ -263,12 +297,7 @@ def run_closed_loop(
             sim.command_jump(t, out.jump_force_n, out.jump_torque_nm)
             if t in fail_ns:
                 controller.inject_solver_failures(1)
-            gyro = (  # the rate of the imu message
-                state.angular_velocity_rad_s
-                if perturbed is None
-                else perturbed.gyro(state.angular_velocity_rad_s)
-            )
-            planned = mpc_tick.on_state(t, gyro, q_measured, state.principal_inertia_kg_m2)
+            planned = mpc_tick.on_state(t, gyro, q_measured, inertia_used)
             if planned is None or planned.setpoint_kg_m2 is None:
                 raise ValueError(f"MPC tick at t = {t * 1e-9:.3f} s not answered: {planned}")
             setpoint = planned.setpoint_kg_m2
@@ -281,7 +310,7 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            commanded = allocator.lockstep_tick(t, state.principal_inertia_kg_m2, gyro, setpoint)
+            commanded = allocator.lockstep_tick(t, inertia_used, gyro, setpoint)
             for allocation in commanded.commands:  # one per tick in lockstep
                 position, velocity = allocation.joint_position, allocation.joint_velocity
                 if perturbed is not None:
@@ -299,7 +328,20 @@ def run_closed_loop(
         scenario.variant,
         time.monotonic() - started,
     )
-    return _series(rec, phases, scenario.gravity_m_s2)
+    series = _series(rec, phases, scenario.gravity_m_s2)
+    if rec_est:
+        series.extras["estimate_t_s"] = np.array([t * 1e-9 for t, _ in rec_est])
+        series.extras["estimate_gyro_bias_rad_s"] = np.array(
+            [e.gyro_bias_rad_s for _, e in rec_est]
+        )
+        series.extras["estimate_mass_ratios"] = np.array([e.mass_ratios for _, e in rec_est])
+        series.extras["estimate_rate_rad_s"] = np.array(
+            [e.angular_velocity_rad_s for _, e in rec_est]
+        )
+        series.extras["estimate_inertia_kg_m2"] = np.array(
+            [e.principal_inertia_kg_m2 for _, e in rec_est]
+        )
+    return series
 
 
 _RECORDED = (
