@@ -36,6 +36,13 @@ CONTACT_WRENCHES: Final = (CONTACT_WRENCH_A, CONTACT_WRENCH_B)
 # geometry_msgs/PoseArray on the markers grid: with odom, inertia, imu and the contact
 # wrenches, the whole scene as data (splitter_sim.messages).
 SCENE_MASSES: Final = "/splitter/scene/masses"
+# Ground truth (DESIGN.md section 3, "What controllers may read"): the simulator's exact
+# state for bags and metrics; no controller subscribes to it. TRUTH_IMU: the exact body
+# rate and attitude (IMU carries what the robot's gyro reads: with the scenario's bias
+# and noise); TRUTH_INERTIA: the exact principal moments (base frame).
+TRUTH_IMU: Final = "/splitter/truth/imu"
+TRUTH_INERTIA: Final = "/splitter/truth/inertia"
+TRUTH_TOPICS: Final = (TRUTH_IMU, TRUTH_INERTIA)
 
 # Fully qualified ROS type names, as rosbag2 writes them.
 TOPIC_TYPES: Final[dict[str, str]] = {
@@ -54,6 +61,8 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     JUMP_COMMAND: "geometry_msgs/msg/WrenchStamped",
     MARKERS: "visualization_msgs/msg/MarkerArray",
     SCENE_MASSES: "geometry_msgs/msg/PoseArray",
+    TRUTH_IMU: "sensor_msgs/msg/Imu",
+    TRUTH_INERTIA: "geometry_msgs/msg/Vector3Stamped",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
 }
 

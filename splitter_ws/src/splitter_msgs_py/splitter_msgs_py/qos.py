@@ -47,6 +47,8 @@ TOPIC_QOS: dict[str, QoSProfile] = {
     names.JUMP_COMMAND: COMMAND_QOS,
     names.CONTACT_WRENCH_A: STATE_QOS,
     names.CONTACT_WRENCH_B: STATE_QOS,
+    names.TRUTH_IMU: STATE_QOS,
+    names.TRUTH_INERTIA: STATE_QOS,
     names.MARKERS: MARKERS_QOS,
     names.DIAGNOSTICS: DIAGNOSTICS_QOS,
 }

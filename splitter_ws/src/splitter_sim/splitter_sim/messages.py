@@ -1,15 +1,17 @@
 """The simulator's state and scene as ROS messages (and the scene's masses back).
 
 * :func:`state_messages`: a :class:`~splitter_sim.core.simulator.SimState` as the
-  messages of one step, per topic, in publishing order.
+  messages of one step, per topic, in publishing order: what the robot's sensors
+  report (``/splitter/imu`` with the gyro's errors) and the ground truth
+  (``/splitter/truth/...``).
 * :func:`scene_markers`: ``/splitter/markers`` (``visualization_msgs/MarkerArray``,
   world frame): 10 mass spheres (ns ``splitter_masses``, id = mass index), the
   tether (``splitter_tether``) and limb lines (``splitter_limbs``), and the scene's
   arrows (``splitter_arrows``: body axes, angular momentum, contact forces).
 * :func:`masses_to_msg` / :func:`masses_from_msg`: ``/splitter/scene/masses``
   (``geometry_msgs/PoseArray``, world frame): the ten lumped masses in index
-  order, each oriented as the base frame. With the odometry, ``/splitter/inertia``,
-  the IMU rate and the contact wrenches it gives the whole scene
+  order, each oriented as the base frame. With the odometry, the true inertia and
+  rate (``/splitter/truth/...``) and the contact wrenches it gives the whole scene
   (:func:`splitter_sim.core.scene.scene_from_pose`).
 """
 
@@ -19,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseArray
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from splitter_msgs_py import conversions as cv
@@ -113,13 +115,26 @@ def masses_from_msg(msg: PoseArray) -> NDArray[np.float64]:
     return positions
 
 
-def state_messages(state: SimState) -> list[tuple[str, object]]:
-    """(topic, message) of every state stream of one step, stamped ``state.t_ns``."""
+def state_messages(
+    state: SimState,
+    gyro_rad_s: ArrayLike | None = None,
+    gyro_noise_rad_s: float = 0.0,
+) -> list[tuple[str, object]]:
+    """(topic, message) of every state stream of one step, stamped ``state.t_ns``.
+
+    ``/splitter/imu`` carries the rate gyro's reading ``gyro_rad_s`` (default: the
+    true rate), its noise variance ``gyro_noise_rad_s**2`` on the diagonal of
+    ``angular_velocity_covariance``; the ground truth goes on ``/splitter/truth/imu``
+    (exact rate and attitude) and ``/splitter/truth/inertia`` (exact principal
+    moments), before the IMU, the step's last message.
+    """
     t, q, w = state.t_ns, state.orientation_wxyz, state.angular_velocity_rad_s
+    inertia = cv.vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME)
+    acceleration = state.linear_acceleration_m_s2
     return [
         (names.CLOCK, cv.clock_to_msg(t)),
         (names.JOINT_STATES, cv.joint_state_to_msg(t, state.joint_position, state.joint_velocity)),
-        (names.INERTIA, cv.vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME)),
+        (names.INERTIA, inertia),
         (names.ODOM, cv.odom_to_msg(t, state.position_m, q, state.velocity_m_s, w)),
         *(
             (topic, cv.wrench_to_msg(t, force, torque, names.WORLD_FRAME))
@@ -127,5 +142,16 @@ def state_messages(state: SimState) -> list[tuple[str, object]]:
                 names.CONTACT_WRENCHES, state.contact_force_n, state.contact_torque_n_m, strict=True
             )
         ),
-        (names.IMU, cv.imu_to_msg(t, q, w, state.linear_acceleration_m_s2)),
+        (names.TRUTH_INERTIA, inertia),
+        (names.TRUTH_IMU, cv.imu_to_msg(t, q, w, acceleration)),
+        (
+            names.IMU,
+            cv.imu_to_msg(
+                t,
+                q,
+                w if gyro_rad_s is None else gyro_rad_s,
+                acceleration,
+                angular_velocity_variance=gyro_noise_rad_s**2,
+            ),
+        ),
     ]

@@ -3,12 +3,15 @@
 ROS plumbing over :class:`splitter_sim.core.tick.SimulatorTick` (the simulator, command
 queue, stamp rules, lockstep wait, accounting; docs/ARCHITECTURE.md, "Lockstep
 protocol"). It publishes ``/clock`` (it does not use sim time) and, stamped ``t`` each
-step, joint states, inertia, odometry, contact wrenches and IMU; on the markers grid
+step, joint states, inertia, odometry, contact wrenches, the ground truth
+(``/splitter/truth/inertia``, ``/splitter/truth/imu``) and the IMU (its rate gyro's
+reading: the true rate with the robot's gyro bias and noise); on the markers grid
 the scene (:class:`splitter_sim.core.scene.Scene`) as ``/splitter/scene/masses`` and
 ``/splitter/markers`` drawn from it; ``/diagnostics``. ``lockstep``: a steady timer
 and the command callbacks step it, never blocking; ``real_time``: a wall-clock timer
 at ``dt_s / rate_factor``. Bad input is warned (throttled) and counted, never raised.
-Parameters: the fields of ``SimConfig`` and ``SimulatorSettings``.
+Parameters: the fields of ``SimConfig``, ``SimulatorSettings`` and ``RobotErrors`` (the
+simulated robot's mass, gyro and actuator-lag errors).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from splitter_msgs_py.parameters import (
 from splitter_msgs_py.presence import PublisherPresence
 from splitter_msgs_py.qos import qos_for
 from splitter_msgs_py.signals import spin_until_stopped
+from splitter_sim.core.robot_errors import RobotErrors
 from splitter_sim.core.settings import SimulatorSettings
 from splitter_sim.core.simulator import SimConfig
 from splitter_sim.core.tick import JOINT_KEY, JUMP_KEY, LOCKSTEP_TOPICS, SimulatorTick, StartGate
@@ -48,7 +52,17 @@ from splitter_sim.messages import masses_to_msg, scene_markers, state_messages
 
 NODE_NAME = "simulator"
 STATE_TOPICS = (names.JOINT_STATES, names.INERTIA, names.ODOM, *names.CONTACT_WRENCHES, names.IMU)
-PUBLISHED = (names.CLOCK, *STATE_TOPICS, names.SCENE_MASSES, names.MARKERS, names.DIAGNOSTICS)
+# every step too, but not waited for at the start (only controllers' inputs are), except
+# by the subscribers named in startup_wait_for_subscribers (a recorder)
+TRUTH_TOPICS = names.TRUTH_TOPICS
+PUBLISHED = (
+    names.CLOCK,
+    *STATE_TOPICS,
+    *TRUTH_TOPICS,
+    names.SCENE_MASSES,
+    names.MARKERS,
+    names.DIAGNOSTICS,
+)
 LOCKSTEP_POLL_S = 0.005  # [s] wall period of the lockstep driver timer
 SLACK_WARNING_PERIOD_S = 1.0  # [s] wall: at most one tether-slack warning per period
 BATCH_WALL_S = 0.02  # [s] longest a free-running callback steps before yielding
@@ -98,10 +112,12 @@ class SimulatorNode(Node):
         return self.tick.time_ns
 
     def _declared_settings(self) -> tuple[SimulatorSettings, SimConfig]:
-        settings = config_from_values(
-            SimulatorSettings, declare_parameters(self, specs_from_config(SimulatorSettings))
-        )
+        own = declare_parameters(self, specs_from_config(SimulatorSettings))
         values = declare_parameters(self, specs_from_config(SimConfig))
+        errors = config_from_values(
+            RobotErrors, declare_parameters(self, specs_from_config(RobotErrors))
+        )
+        settings = config_from_values(SimulatorSettings, own, robot_errors=errors)
         return settings, config_from_values(SimConfig, values, gravity_m_s2=self._gravity())
 
     def _gravity(self) -> float:
@@ -160,6 +176,9 @@ class SimulatorNode(Node):
         lockstep = () if self.tick.real_time else LOCKSTEP_TOPICS
         present = set(self.get_node_names())
         subscribers = {t: self.get_subscriptions_info_by_topic(t) for t in STATE_TOPICS}
+        recorded = {
+            t: self.get_subscriptions_info_by_topic(t) for t in (*STATE_TOPICS, *TRUTH_TOPICS)
+        }
         unpublished = [
             t for t in (*lockstep, *s.startup_wait_for_publishers) if self.count_publishers(t) == 0
         ]
@@ -171,14 +190,14 @@ class SimulatorNode(Node):
             + [f"node {n}" for n in s.startup_wait_for_nodes if n not in present]
             + [
                 f"subscriber {n} on {t}"
-                for t, infos in subscribers.items()
+                for t, infos in recorded.items()
                 for n in s.startup_wait_for_subscribers
                 if n not in {i.node_name for i in infos}
             ]
             + [
                 f"every DDS match on {p.topic_name}"
                 for p in self.publishers
-                if p.topic_name in (*STATE_TOPICS, names.CLOCK)
+                if p.topic_name in (*STATE_TOPICS, *TRUTH_TOPICS, names.CLOCK)
                 and p.get_subscription_count() < self.count_subscribers(p.topic_name)
             ]
         )
@@ -284,7 +303,9 @@ class SimulatorNode(Node):
         try:
             if state is None:
                 raise cv.MessageValidationError("non-finite simulator state")
-            msgs = state_messages(state)
+            msgs = state_messages(
+                state, self.tick.gyro_reading(state), self.tick.errors.gyro_noise_rad_s
+            )
         except cv.MessageValidationError as exc:
             self.tick.unpublished += state is not None
             self.get_logger().error(

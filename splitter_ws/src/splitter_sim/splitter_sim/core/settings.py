@@ -2,12 +2,14 @@
 
 ROS-free. Each field is a node parameter (:func:`parameter_field`: name, default,
 description with unit, range); the physics parameters are the fields of
-:class:`splitter_sim.core.simulator.SimConfig`. The node declares both from here.
+:class:`splitter_sim.core.simulator.SimConfig`, the simulated robot's errors those of
+:class:`splitter_sim.core.robot_errors.RobotErrors` (``robot_errors``). The node
+declares them all from here.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -15,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from splitter_model.model import RobotModel
 from splitter_msgs_py.core.parameter_fields import parameter_field
+from splitter_sim.core.robot_errors import RobotErrors
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODES = ("lockstep", "real_time")
@@ -92,6 +95,8 @@ class SimulatorSettings:
     initial_radii_m: tuple[float, ...] = parameter_field(
         (2.8, 0.2, 0.2), "r_x, r_y, r_z [m]", length=3
     )
+    # the simulated robot's errors (parameters of their own: RobotErrors' fields)
+    robot_errors: RobotErrors = field(default_factory=RobotErrors)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -106,9 +111,14 @@ class SimulatorSettings:
         return period
 
     def simulator(self, config: SimConfig, model: RobotModel | None = None) -> Simulator:
-        """The simulator starting from this initial state; a ValueError names its parameter."""
+        """The simulator starting from this initial state; a ValueError names its parameter.
+
+        It flies ``model`` (default: the nominal robot) with ``robot_errors``' masses
+        (:meth:`RobotErrors.plant_model`).
+        """
+        plant = self.robot_errors.plant_model(model or RobotModel())
         try:
-            return Simulator(model or RobotModel(), config, self.initial_state())
+            return Simulator(plant, config, self.initial_state())
         except ValueError as exc:
             raise _naming_parameter(exc) from exc
 

@@ -22,7 +22,14 @@ drives the same object:
   tension, the peak hemi acceleration, states not published, real-time backlog;
   :meth:`SimulatorTick.diagnostics` is the ``/diagnostics`` status as plain data;
 * :meth:`SimulatorTick.published` says what else is due at a published step: the
-  :class:`~splitter_sim.core.scene.Scene` (markers grid), diagnostics, progress.
+  :class:`~splitter_sim.core.scene.Scene` (markers grid), diagnostics, progress;
+* the simulated robot's errors (``SimulatorSettings.robot_errors``,
+  :class:`~splitter_sim.core.robot_errors.RobotErrors`): every joint command
+  reaches the simulator's servos through their
+  :class:`~splitter_model.actuators.CommandLag` (one lag step per command, the
+  control period), and :meth:`SimulatorTick.gyro_reading` is what the IMU's rate
+  gyro reads (bias and noise); the masses are the simulator's own
+  (:meth:`SimulatorSettings.simulator` builds it with them).
 """
 
 from __future__ import annotations
@@ -32,12 +39,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.actuators import CommandLag
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 from splitter_sim.core.actuators import validate_joint_command
+from splitter_sim.core.robot_errors import Gyro, RobotErrors
 from splitter_sim.core.scene import Ground, Scene, scene_of_state
 from splitter_sim.core.settings import SimulatorSettings
 from splitter_sim.core.simulator import SimState, Simulator
@@ -121,6 +130,7 @@ class SimulatorTick:
     """One simulator, its command queue, stamp rules, lockstep wait and accounting."""
 
     def __init__(self, sim: Simulator, settings: SimulatorSettings | None = None) -> None:
+        """``sim`` should fly ``settings.robot_errors``' masses (``settings.simulator``)."""
         s = settings or SimulatorSettings()
         dt_ns = sim.config.dt_ns
         self.sim = sim
@@ -147,6 +157,11 @@ class SimulatorTick:
         self.last_published: SimState | None = None
         self._was_slack = False
         self._state: SimState | None = None
+        self.errors: RobotErrors = s.robot_errors
+        lag_s = self.errors.actuator_lag_s  # [s] time constant
+        self._lag = CommandLag(lag_s, self.control_ns * 1e-9) if lag_s > 0.0 else None
+        self._gyro = Gyro(self.errors)
+        self._gyro_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], rate)
 
     def describe(self) -> str:
         """Mode, step, gravity, ground and duration in one line (the node's start-up log)."""
@@ -192,10 +207,20 @@ class SimulatorTick:
             else:
                 self.late_joint_commands += stamp_ns < now
                 self.queue.drop_from(stamp_ns)  # a later plan: the points queued are void
-                self.sim.command_joints(position, velocity, stamp_ns=stamp_ns)
+                self._to_servos(stamp_ns, position, velocity)
                 self.applied_joint_stamp = stamp_ns
         finally:
             self.lockstep.arrived(names.JOINT_COMMANDS, stamp_ns)
+
+    def _to_servos(self, stamp_ns: int, position: ArrayLike, velocity: ArrayLike | None) -> None:
+        """A joint command point (checked first, so a refused one leaves the lag as it
+        was) through the actuators' lag to the simulator's servos."""
+        if self._lag is not None:
+            q, qd = validate_joint_command(
+                self.sim.joint_limits, position, velocity, names.JOINT_NAMES
+            )
+            position, velocity = self._lag.apply(q, qd)
+        self.sim.command_joints(position, velocity, stamp_ns=stamp_ns)
 
     def command_jump(
         self,
@@ -230,7 +255,7 @@ class SimulatorTick:
             due = self.queue.due(self.time_ns)
             if due is not None:
                 stamp, (position, velocity) = due
-                self.sim.command_joints(position, velocity, stamp_ns=stamp)
+                self._to_servos(stamp, position, velocity)
                 self.applied_joint_stamp = stamp
             upcoming = self.queue.peek()
             if upcoming is not None:
@@ -274,6 +299,17 @@ class SimulatorTick:
         return behind_s
 
     # --- outputs ----------------------------------------------------------------------
+    def gyro_reading(self, state: SimState) -> NDArray[np.float64]:
+        """What the IMU's rate gyro reads of ``state``'s true body rate [rad/s].
+
+        One reading per simulated time: a second call for a state of the same time
+        returns the same reading (the noise is drawn once). Without gyro errors, the
+        true rate itself.
+        """
+        if self._gyro_reading is None or self._gyro_reading[0] != state.t_ns:
+            self._gyro_reading = (state.t_ns, self._gyro.read(state.angular_velocity_rad_s))
+        return self._gyro_reading[1]
+
     def publishable_state(self) -> SimState | None:
         """The state to publish now, None when it is not finite (counted)."""
         state = self.state()

@@ -1,0 +1,130 @@
+"""How the simulated robot differs from the nominal one its controllers assume (ROS-free).
+
+DESIGN.md section 3, "What controllers may read": the controllers read the IMU with
+the scenario's noise and bias, and the joint states; the simulator flies the robot
+as it really is. :class:`RobotErrors` says how that robot is wrong:
+
+* ``mass_scale``: the lumped masses ``m_x``, ``m_y``, ``m_z`` of the robot flown
+  are the nominal ones times these factors (:meth:`RobotErrors.plant_model`);
+* ``gyro_noise_rad_s``, ``gyro_bias_rad_s``, ``noise_seed``: the rate gyro of
+  ``/splitter/imu`` reads the true body rate plus a constant bias (body frame)
+  plus white Gaussian noise of this standard deviation per axis and reading
+  (:class:`Gyro`);
+* ``actuator_lag_s``: every joint and tether command reaches the servos through a
+  first-order lag of this time constant
+  (:class:`splitter_model.actuators.CommandLag`, the one actuator-lag model).
+
+The defaults are the nominal robot: no error, and nothing drawn from a random
+generator, so a run without errors is bit-identical to one before they existed.
+Each field is a ``simulator`` node parameter (:func:`parameter_field`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_model.model import RobotModel
+from splitter_msgs_py.core.parameter_fields import parameter_field
+
+MASS_SCALE_MAX = 10.0  # [-] a mass scale factor lies in (0, MASS_SCALE_MAX)
+SEED_MAX = 2**31 - 1  # the largest noise seed (a ROS integer parameter holds it)
+
+
+@dataclass(frozen=True)
+class RobotErrors:
+    """The simulated robot's mass, gyro and actuator errors (module docstring)."""
+
+    mass_scale: tuple[float, float, float] = parameter_field(
+        (1.0, 1.0, 1.0),
+        "robot errors: factors on the simulated masses m_x, m_y, m_z, each in (0, 10) [-]",
+        length=3,
+        bounds=(0.0, MASS_SCALE_MAX),
+    )
+    gyro_noise_rad_s: float = parameter_field(
+        0.0,
+        "robot errors: white noise of the IMU's rate gyro, std per axis and reading [rad/s]",
+        bounds=(0.0, 10.0),
+    )
+    gyro_bias_rad_s: tuple[float, float, float] = parameter_field(
+        (0.0, 0.0, 0.0),
+        "robot errors: constant bias of the IMU's rate gyro, body [rad/s]",
+        length=3,
+    )
+    actuator_lag_s: float = parameter_field(
+        0.0,
+        "robot errors: first-order lag time constant of every joint and tether command "
+        "(0: none) [s]",
+        bounds=(0.0, 10.0),
+    )
+    noise_seed: int = parameter_field(
+        0, "robot errors: seed of the gyro noise [-]", bounds=(0, SEED_MAX)
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("gyro_noise_rad_s", "actuator_lag_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{name}: a number, got {value!r}")
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        scale = _three_finite("mass_scale", self.mass_scale)
+        if not all(0.0 < s < MASS_SCALE_MAX for s in scale):
+            raise ValueError(f"mass_scale: each factor in (0, {MASS_SCALE_MAX:g}), got {scale}")
+        object.__setattr__(self, "mass_scale", scale)
+        object.__setattr__(
+            self, "gyro_bias_rad_s", _three_finite("gyro_bias_rad_s", self.gyro_bias_rad_s)
+        )
+        seed = self.noise_seed
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= SEED_MAX:
+            raise ValueError(f"noise_seed: an integer in [0, {SEED_MAX}], got {seed!r}")
+
+    def plant_model(self, nominal: RobotModel) -> RobotModel:
+        """The robot the simulator flies: ``nominal`` with its masses scaled."""
+        sx, sy, sz = self.mass_scale
+        return replace(
+            nominal,
+            body_mass_kg=nominal.body_mass_kg * sx,
+            limb_mass_y_kg=nominal.limb_mass_y_kg * sy,
+            limb_mass_z_kg=nominal.limb_mass_z_kg * sz,
+        )
+
+
+def _three_finite(name: str, value: object) -> tuple[float, float, float]:
+    """``value`` as 3 finite floats; ValueError naming ``name`` otherwise."""
+    try:
+        if isinstance(value, str | bytes) or any(isinstance(v, bool) for v in value):  # type: ignore[union-attr]
+            raise TypeError(name)
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: 3 finite numbers, got {value!r}") from None
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: 3 finite numbers, got {value!r}")
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+class Gyro:
+    """The rate gyro of :class:`RobotErrors`: true rate + bias + white noise, per reading.
+
+    One reading draws 3 normals (one per axis) from ``default_rng(noise_seed)``;
+    without noise nothing is drawn, and without bias and noise the reading is the
+    true rate itself.
+    """
+
+    def __init__(self, errors: RobotErrors) -> None:
+        self.noise_rad_s = errors.gyro_noise_rad_s  # [rad/s] std per axis and reading
+        self.bias_rad_s = np.asarray(errors.gyro_bias_rad_s, dtype=float)  # [rad/s] body
+        self._rng = np.random.default_rng(errors.noise_seed)
+
+    def read(self, w_true_rad_s: ArrayLike) -> NDArray[np.float64]:
+        """The reading of the true body rate ``w_true_rad_s`` [rad/s]."""
+        w = np.asarray(w_true_rad_s, dtype=float)
+        if self.bias_rad_s.any():  # (none: the true rate as it is, -0.0 included)
+            w = w + self.bias_rad_s
+        if self.noise_rad_s > 0.0:
+            w = w + self._rng.normal(0.0, self.noise_rad_s, 3)
+        return w
