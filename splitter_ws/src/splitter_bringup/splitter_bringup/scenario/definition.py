@@ -6,6 +6,9 @@ the first variant is the main one (the one a plain ``splitter run`` reports
 against the paper). ``paper`` holds the paper's numbers; ``findings`` its
 qualitative findings, each a comparison of one metric between two variants
 (:class:`PaperFinding`), which ``splitter run`` checks on the variants it ran.
+``robot_errors`` (optional) makes the simulated robot differ from the nominal one
+its controllers assume (:class:`~splitter_sim.core.robot_errors.RobotErrors`:
+masses, gyro noise and bias, actuator lag), in the graph and the library loop alike.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -25,6 +28,7 @@ from numpy.typing import NDArray
 from splitter_model.model import gravity_from_name
 from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
+from splitter_sim.core.robot_errors import RobotErrors
 
 
 class ScenarioError(ValueError):
@@ -124,6 +128,9 @@ class Scenario:
     jumps: tuple[JumpSpec, ...]
     ground_contact: bool
     compliant_legs: bool = False  # stance legs under impedance control (splitter_sim.core.legs)
+    # how the simulated robot differs from the nominal one its controllers assume
+    # (masses, gyro noise and bias, actuator lag); default: not at all
+    robot_errors: RobotErrors = field(default_factory=RobotErrors)
     paper: Mapping[str, Any] = field(default_factory=dict)
     variants: tuple[str, ...] = ()
     findings: tuple[PaperFinding, ...] = ()
@@ -181,6 +188,23 @@ def _horizon(data: Mapping[str, Any]) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 1000:
         raise ScenarioError(f"horizon: expected an integer in [2, 1000], got {value!r}")
     return value
+
+
+def _robot_errors(data: Any) -> RobotErrors:
+    """The ``robot_errors`` mapping (fields of :class:`RobotErrors`); errors name the field."""
+    if data is None:
+        return RobotErrors()
+    if not isinstance(data, Mapping):
+        raise ScenarioError(f"robot_errors: expected a mapping of field -> value, got {data!r}")
+    known = {f.name for f in fields(RobotErrors)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ScenarioError(f"robot_errors.{unknown[0]}: unknown field; use {sorted(known)}")
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+    try:
+        return RobotErrors(**values)
+    except ValueError as exc:  # names the field first
+        raise ScenarioError(f"robot_errors.{exc}") from exc
 
 
 def _findings(data: Any, variants: tuple[str, ...]) -> tuple[PaperFinding, ...]:
@@ -298,6 +322,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         jumps=tuple(jumps),
         ground_contact=bool(d.get("ground_contact", False)),
         compliant_legs=bool(d.get("compliant_legs", False)),
+        robot_errors=_robot_errors(d.get("robot_errors")),
         paper=dict(d.get("paper", {}) or {}),
         variants=variants,
         findings=_findings(d.get("findings"), variants),

@@ -86,6 +86,19 @@ def simulator_parameters(
         "initial_orientation_euler_deg": _floats(scenario.initial_orientation_euler_deg),
         "initial_angular_velocity_rad_s": _floats(scenario.initial_angular_velocity_rad_s),
         "initial_radii_m": _floats(scenario.initial_radii_m),
+        **robot_error_parameters(scenario),
+    }
+
+
+def robot_error_parameters(scenario: Scenario) -> dict:
+    """The simulator's parameters of the scenario's robot errors (``RobotErrors``' fields)."""
+    e = scenario.robot_errors
+    return {
+        "mass_scale": _floats(e.mass_scale),
+        "gyro_noise_rad_s": float(e.gyro_noise_rad_s),
+        "gyro_bias_rad_s": _floats(e.gyro_bias_rad_s),
+        "actuator_lag_s": float(e.actuator_lag_s),
+        "noise_seed": int(e.noise_seed),
     }
 
 

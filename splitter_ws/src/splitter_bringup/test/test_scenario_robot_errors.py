@@ -1,0 +1,90 @@
+"""A scenario's ``robot_errors``: parsed with errors naming the field, given to the simulator
+node as parameters and to the library loop's simulator tick alike."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from splitter_bringup.scenario.definition import ScenarioError, load_scenario
+from splitter_bringup.scenario.graph_config import simulator_parameters
+from splitter_bringup.scenario.simulation import simulator_tick
+from splitter_model.model import RobotModel
+from splitter_msgs_py.parameters import config_from_values, specs_from_config
+from splitter_sim.core.robot_errors import RobotErrors
+
+NAME = "spin_stabilization_robot_errors"
+ERRORS = RobotErrors(
+    mass_scale=(1.08, 0.93, 1.05),
+    gyro_noise_rad_s=0.002,
+    gyro_bias_rad_s=(0.004, -0.005, 0.003),
+    actuator_lag_s=0.05,
+    noise_seed=7,
+)
+
+
+def test_the_robot_errors_scenario_loads_as_spin_stabilization_with_errors() -> None:
+    scenario = load_scenario(NAME)
+    assert scenario.robot_errors == ERRORS
+    base = load_scenario("spin_stabilization")
+    assert base.robot_errors == RobotErrors()
+    assert scenario.variants == base.variants
+    for variant in base.variants:  # a copy of spin_stabilization but for the errors
+        a, b = load_scenario(NAME, variant), load_scenario("spin_stabilization", variant)
+        assert a.controller == b.controller and a.duration_s == b.duration_s
+        np.testing.assert_array_equal(
+            a.initial_angular_velocity_rad_s, b.initial_angular_velocity_rad_s
+        )
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("robot_errors: 3", "robot_errors: expected a mapping"),
+        ("robot_errors: {mass_scale: [1, 1]}", r"robot_errors\.mass_scale: 3 finite numbers"),
+        ("robot_errors: {mass_scale: [1, 0, 1]}", r"robot_errors\.mass_scale: each factor"),
+        (
+            "robot_errors: {gyro_bias_rad_s: [0, .nan, 0]}",
+            r"robot_errors\.gyro_bias_rad_s: 3 finite numbers",
+        ),
+        ("robot_errors: {gyro_noise_rad_s: -1}", r"robot_errors\.gyro_noise_rad_s: must be"),
+        ("robot_errors: {actuator_lag_s: abc}", r"robot_errors\.actuator_lag_s: a number"),
+        ("robot_errors: {noise_seed: 1.5}", r"robot_errors\.noise_seed: an integer"),
+        ("robot_errors: {gyro_drift: 1}", r"robot_errors\.gyro_drift: unknown field"),
+    ],
+)
+def test_a_bad_robot_error_names_its_field(tmp_path: Path, entry: str, message: str) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"duration_s: 1.0\n{entry}\n")
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario(bad)
+
+
+def test_the_node_parameters_and_the_library_tick_carry_the_same_errors() -> None:
+    scenario = load_scenario(NAME)
+    values = simulator_parameters(scenario, real_time=False, rate_factor=1.0)
+    declared = {spec.name for spec in specs_from_config(RobotErrors)}
+    assert declared <= set(values)
+    assert config_from_values(RobotErrors, values) == ERRORS
+    tick = simulator_tick(scenario)
+    assert tick.errors == ERRORS
+    nominal = RobotModel()
+    assert tick.sim.model == ERRORS.plant_model(nominal)
+    assert tick.sim.model.body_mass_kg == pytest.approx(1.08 * nominal.body_mass_kg)
+
+
+def test_without_errors_the_library_tick_is_the_nominal_simulator() -> None:
+    from splitter_bringup.run.library import simulator_for
+
+    scenario = load_scenario("lunar_jumping")
+    tick, library = simulator_tick(scenario), simulator_for(scenario)
+    assert tick.sim.config == library.config and tick.sim.model == library.model
+    for _ in range(3):
+        a, b = tick.state(), library.state()
+        for name in ("position_m", "orientation_wxyz", "angular_velocity_rad_s", "joint_position"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        np.testing.assert_array_equal(tick.gyro_reading(a), b.angular_velocity_rad_s)
+        tick.step()
+        library.step()
