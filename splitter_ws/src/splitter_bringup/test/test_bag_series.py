@@ -135,3 +135,38 @@ def test_plot_command_writes_the_figures(run_bag: Path, tmp_path: Path, capsys) 
     assert summary["samples"] == N
     assert summary["peak_v_x_m_s"] == pytest.approx(2.0 * (N - 1) * STEP_NS * 1e-9)
     assert plot.main(parser.parse_args([str(tmp_path / "nothing"), "--out", str(out)])) == 1
+
+
+def test_the_metrics_read_the_ground_truth_when_the_bag_has_it(tmp_path: Path) -> None:
+    """A noisy, biased /splitter/imu and an estimated /splitter/inertia never enter the
+    series when the bag holds /splitter/truth/imu and /splitter/truth/inertia."""
+    from splitter_bringup.run.run_bag import run_check_arrays_from_bag
+
+    model = RobotModel()
+    bag_dir = tmp_path / "truth"
+    topics = (*bag_series.STATE_TOPICS, names.TRUTH_IMU, names.TRUTH_INERTIA)
+    bias = np.array([0.01, -0.02, 0.03])  # [rad/s]
+    with BagWriter(bag_dir) as bag:
+        for topic in topics:
+            bag.add_topic(topic, names.TOPIC_TYPES[topic])
+        for k in range(5):
+            t_ns, t = k * STEP_NS, k * STEP_NS * 1e-9
+            q, w = _quat(t), _w(t)
+            msgs = {
+                names.IMU: cv.imu_to_msg(t_ns, q, w + bias, [0, 0, 0]),
+                names.TRUTH_IMU: cv.imu_to_msg(t_ns, q, w, [0, 0, 0]),
+                names.ODOM: cv.odom_to_msg(t_ns, [0, 0, 0], q, [0, 0, 0], w),
+                names.INERTIA: cv.vector3_to_msg(t_ns, [1.0, 2.0, 3.0]),  # an estimate
+                names.TRUTH_INERTIA: cv.vector3_to_msg(t_ns, [1.5, 2.5, 3.5]),
+                names.JOINT_STATES: cv.joint_state_to_msg(
+                    t_ns, joint_positions_from_radii(model, _radii(t))
+                ),
+            }
+            for topic, msg in msgs.items():
+                bag.write(topic, serialize_message(msg), t_ns, t_ns)
+    series = read_run_series(bag_dir)
+    truth = np.array([_w(x) for x in series.t_s])
+    np.testing.assert_allclose(series.angular_velocity_rad_s, truth)
+    np.testing.assert_array_equal(series.principal_inertia_kg_m2[-1], [1.5, 2.5, 3.5])
+    np.testing.assert_allclose(run_check_arrays_from_bag(bag_dir)["angular_velocity_rad_s"], truth)
+    assert bag_series.truth_topic(names.IMU, {names.IMU}) == names.IMU  # an old bag

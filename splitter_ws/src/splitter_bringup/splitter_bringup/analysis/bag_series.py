@@ -6,7 +6,12 @@ bag into samples needs rclpy: :mod:`splitter_bringup.run.run_bag`
 (``read_run_series``).
 
 * State topics (IMU, odometry, inertia, joint states; 200 Hz) are aligned on
-  their ``header.stamp``: a sample exists at every stamp all four carry.
+  their ``header.stamp``: a sample exists at every stamp all four carry. The body
+  rate and the inertia are the ground truth (``/splitter/truth/imu``,
+  ``/splitter/truth/inertia``; :func:`truth_topic`), so a noisy, biased gyro or an
+  estimated inertia never enters the metrics; bags recorded before the truth
+  topics existed fall back to ``/splitter/imu`` and ``/splitter/inertia``, which
+  were the truth then.
 * Inertia setpoints (100 Hz) and the jump command are forward-filled onto those
   stamps (the latest one stamped at or before; the first back-fills the start;
   without any setpoint the measured inertia stands in, as in the library loop's
@@ -36,6 +41,8 @@ from splitter_msgs_py import names
 _log = logging.getLogger(__name__)
 _NS_PER_S = 1_000_000_000
 STATE_TOPICS = (names.IMU, names.ODOM, names.INERTIA, names.JOINT_STATES)
+# the ground truth of a state topic, read instead of it when the bag has it
+TRUTH_OF = {names.IMU: names.TRUTH_IMU, names.INERTIA: names.TRUTH_INERTIA}
 GRAVITY_KEY = "gravity_m_s2"  # custom_data key a launcher may store in the bag
 MPC_DIAGNOSTICS_PREFIX = "inertial_morphing_mpc"  # the MPC node's /diagnostics status name
 # its cumulative counters, read into RunSeries.extras["mpc_<name>"] (the library loop's too)
@@ -112,6 +119,12 @@ def radii_series(model: RobotModel, joint_positions: NDArray[np.float64]) -> NDA
     return np.array([radii_from_joint_positions(model, q) for q in joint_positions]).reshape(-1, 3)
 
 
+def truth_topic(topic: str, available: Sequence[str] | set[str]) -> str:
+    """The ground-truth topic of ``topic`` if ``available`` has it, else ``topic`` itself."""
+    truth = TRUTH_OF.get(topic)
+    return truth if truth is not None and truth in available else topic
+
+
 # --- decoding -----------------------------------------------------------------------------
 @dataclass
 class TopicSamples:
@@ -147,13 +160,16 @@ def series_from_samples(
 ) -> RunSeries:
     """Align decoded topics into a :class:`RunSeries` (see the module doc)."""
     model = model or RobotModel()
-    missing = [t for t in STATE_TOPICS if not samples.get(t) or not samples[t].stamps_ns]
+    present = {t for t, s in samples.items() if s.stamps_ns}
+    rate_topic, inertia_topic = (truth_topic(t, present) for t in (names.IMU, names.INERTIA))
+    state_topics = (rate_topic, names.ODOM, inertia_topic, names.JOINT_STATES)
+    missing = [t for t in state_topics if t not in present]
     if missing:
         raise BagSeriesError(f"the bag has no messages on {', '.join(missing)}")
-    grid = common_stamps(*(samples[t].stamps_ns for t in STATE_TOPICS))
+    grid = common_stamps(*(samples[t].stamps_ns for t in state_topics))
     if len(grid) == 0:
         raise BagSeriesError("the state topics share no header stamp")
-    for t in STATE_TOPICS:
+    for t in state_topics:
         dropped = len(set(samples[t].stamps_ns)) - len(grid)
         if dropped:
             _log.warning("%s: %d stamps not on all state topics, left out", t, dropped)
@@ -162,7 +178,7 @@ def series_from_samples(
         s = samples[topic]
         return values_at(s.stamps_ns, s.array(key), grid).astype(float)
 
-    inertia = at(names.INERTIA, "v")
+    inertia = at(inertia_topic, "v")
     setpoints = samples.get(names.INERTIA_SETPOINT)
     if setpoints is not None and setpoints.stamps_ns:
         setpoint = forward_fill(setpoints.stamps_ns, setpoints.array("v"), grid).astype(float)
@@ -195,7 +211,7 @@ def series_from_samples(
         )
     return RunSeries(
         t_s=grid.astype(float) / _NS_PER_S,
-        angular_velocity_rad_s=at(names.IMU, "w"),
+        angular_velocity_rad_s=at(rate_topic, "w"),
         orientation_wxyz=at(names.ODOM, "q"),
         principal_inertia_kg_m2=inertia,
         inertia_setpoint_kg_m2=setpoint,

@@ -220,8 +220,14 @@ class FoxgloveBridgeNode(Node):
         return deserialize_message(data, TOPIC_MESSAGE_CLASSES[topic])
 
     def _publish_scene(self, log_time: int) -> None:
-        """Arrows and the base frame of the latest scene; skipped until odometry arrived."""
-        odom, imu, inertia = (self._decoded(t) for t in (names.ODOM, names.IMU, names.INERTIA))
+        """Arrows and the base frame of the latest scene; skipped until odometry arrived.
+
+        The true rate and inertia (``/splitter/truth/...``) when served, else the
+        IMU's and ``/splitter/inertia``.
+        """
+        odom = self._decoded(names.ODOM)
+        imu = self._decoded(names.TRUTH_IMU) or self._decoded(names.IMU)
+        inertia = self._decoded(names.TRUTH_INERTIA) or self._decoded(names.INERTIA)
         if odom is None or imu is None or inertia is None:
             return
         pose = odom.pose.pose

@@ -26,6 +26,7 @@ from splitter_bringup.analysis.bag_series import (
     BagSeriesError,
     TopicSamples,
     series_from_samples,
+    truth_topic,
 )
 from splitter_bringup.analysis.series import RunSeries
 from splitter_model.model import RobotModel
@@ -70,8 +71,10 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
 
     return {
         names.IMU: imu,
+        names.TRUTH_IMU: imu,
         names.ODOM: odom,
         names.INERTIA: vector,
+        names.TRUTH_INERTIA: vector,
         names.JOINT_STATES: joints,
         names.INERTIA_SETPOINT: vector,
         names.GAIT_PHASE: phase,
@@ -192,10 +195,12 @@ def contact_forces_from_bag(bag_dir: Path, t_s: NDArray[np.float64]) -> NDArray[
 
 
 def run_check_arrays_from_bag(bag_dir: Path) -> dict[str, Any]:
-    """Measured joint states, IMU rate, gait phase and jump thrust of a graph bag, by stamp.
+    """Measured joint states, true body rate, gait phase and jump thrust of a graph bag.
 
-    What :func:`splitter_bringup.analysis.run_check.check_run` reads; ValueError when
-    fewer than 3 stamps carry both joint states and the IMU.
+    By stamp. The rate is ``/splitter/truth/imu``'s (``/splitter/imu``'s in a bag
+    recorded before the truth topics). What
+    :func:`splitter_bringup.analysis.run_check.check_run` reads; ValueError when fewer
+    than 3 stamps carry both joint states and the rate.
     """
     from splitter_msgs_py.conversions import (
         imu_from_msg,
@@ -204,9 +209,15 @@ def run_check_arrays_from_bag(bag_dir: Path) -> dict[str, Any]:
         wrench_from_msg,
     )
 
-    topics = (names.JOINT_STATES, names.IMU, names.GAIT_PHASE, names.JUMP_COMMAND)
+    topics = (
+        names.JOINT_STATES,
+        names.IMU,
+        names.TRUTH_IMU,
+        names.GAIT_PHASE,
+        names.JUMP_COMMAND,
+    )
     joints: dict[int, np.ndarray] = {}
-    rates: dict[int, np.ndarray] = {}
+    rates_of: dict[str, dict[int, np.ndarray]] = {names.IMU: {}, names.TRUTH_IMU: {}}
     thrust: dict[int, np.ndarray] = {}
     phase_at: dict[int, str] = {}
     phase = ""
@@ -218,12 +229,13 @@ def run_check_arrays_from_bag(bag_dir: Path) -> dict[str, Any]:
             sample = joint_state_from_msg(msg)
             joints[sample.t_ns] = sample.position
             phase_at[sample.t_ns] = phase
-        elif m.topic == names.IMU:
+        elif m.topic in rates_of:
             imu = imu_from_msg(msg)
-            rates[imu.t_ns] = imu.angular_velocity_rad_s
+            rates_of[m.topic][imu.t_ns] = imu.angular_velocity_rad_s
         else:
             wrench = wrench_from_msg(msg)
             thrust[stamp_from_msg(msg.header.stamp)] = wrench.force_n
+    rates = rates_of[truth_topic(names.IMU, [t for t, r in rates_of.items() if r])]
     stamps = sorted(t for t in joints if t in rates)
     if len(stamps) < 3:
         raise ValueError(f"{bag_dir}: fewer than 3 stamps with both joint_states and imu")
