@@ -86,6 +86,7 @@ class FlightEstimate:
     angular_velocity_rad_s: NDArray[np.float64]  # (3,) body [rad/s]
     gyro_bias_rad_s: NDArray[np.float64]  # (3,) body [rad/s]
     mass_ratios: NDArray[np.float64]  # (m_y/m_x, m_z/m_x) [-]
+    masses_kg: NDArray[np.float64]  # (m_x, m_y, m_z) of the estimated model [kg]
     principal_inertia_kg_m2: NDArray[np.float64]  # (3,) the estimated model at the radii
     orientation_wxyz: NDArray[np.float64]  # (4,) world <- base, integrated rate
     covariance: NDArray[np.float64]  # (8, 8) of [w, b, theta]
@@ -263,6 +264,7 @@ class FlightEstimator:
             angular_velocity_rad_s=self._x[W].copy(),
             gyro_bias_rad_s=self._x[B].copy(),
             mass_ratios=ratios,
+            masses_kg=np.array([model.body_mass_kg, model.limb_mass_y_kg, model.limb_mass_z_kg]),
             principal_inertia_kg_m2=principal_inertia(model, self._radii),
             orientation_wxyz=self._q.copy(),
             covariance=self._p.copy(),

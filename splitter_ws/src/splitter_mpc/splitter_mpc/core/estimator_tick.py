@@ -1,0 +1,84 @@
+"""The flight estimator's control tick, ROS-free: the gyro and the encoders joined, estimated.
+
+The ``flight_estimator`` node converts messages into :meth:`EstimatorTick.add` and
+publishes what it answers; the library closed loop calls :meth:`EstimatorTick.on_sensors`
+with the same values, in the same order, so both estimate the same numbers.
+
+* Inputs of tick ``t`` (a multiple of the control period): the rate gyro (the
+  ``/splitter/imu`` message: its angular velocity; the orientation of the first one
+  is the attitude the robot knows at release, from then on integrated) and the joint
+  encoders (``/splitter/joint_states``: positions, turned into the radii with the
+  nominal model's kinematics). Joined by a
+  :class:`~splitter_mpc.core.tick_inputs.TickAssembler`.
+* The answer of tick ``t``: the :class:`~splitter_mpc.core.estimator.FlightEstimate`
+  stamped ``t``: rate, attitude, inertia, masses, gyro bias and their covariance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from splitter_model.kinematics import radii_from_joint_positions
+from splitter_model.model import RobotModel
+from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate, FlightEstimator
+from splitter_mpc.core.tick_inputs import TickAssembler
+from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import StampGate
+
+TICK_INPUTS = (names.IMU, names.JOINT_STATES)
+
+
+@dataclass(frozen=True)
+class GyroSample:
+    """What the estimator takes from an IMU message."""
+
+    angular_velocity_rad_s: NDArray[np.float64]  # (3,) body [rad/s], biased and noisy
+    orientation_wxyz: NDArray[np.float64]  # (4,) used once: the attitude at release
+
+
+class EstimatorTick:
+    """Joins each control tick's gyro and encoder readings and runs the flight estimator."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        config: EstimatorConfig | None = None,
+        control_period_ns: int = 10_000_000,
+    ) -> None:
+        self.model = model
+        self.estimator = FlightEstimator(model, config)
+        self.ticks = TickAssembler(int(control_period_ns), TICK_INPUTS)
+        self.stamps = StampGate()  # the node's stamp rules per topic
+        self.last: FlightEstimate | None = None
+
+    def add(self, topic: str, t_ns: int, value: object | None) -> FlightEstimate | None:
+        """A gyro sample or the joint positions (None: rejected) stamped ``t_ns``.
+
+        Returns the estimate of the tick it completes, else None.
+        """
+        if topic not in TICK_INPUTS:
+            raise ValueError(f"not an input of the flight estimator: {topic}")
+        events = self.ticks.add(topic, int(t_ns), value)
+        if events.completed is None:
+            return None
+        t, inputs = events.completed
+        samples = self.ticks.samples(inputs)
+        gyro, joints = samples[names.IMU], samples[names.JOINT_STATES]
+        if gyro is None or joints is None:  # nothing good yet: no estimate
+            return None
+        return self.on_sensors(t, gyro, joints)  # type: ignore[arg-type]
+
+    def on_sensors(self, t_ns: int, gyro: GyroSample, joint_positions: ArrayLike) -> FlightEstimate:
+        """Tick ``t_ns`` from plain values: the estimate after this gyro and these encoders."""
+        radii = radii_from_joint_positions(self.model, joint_positions)
+        if not self.estimator.started:
+            self.estimator.start(t_ns, gyro.angular_velocity_rad_s, radii, gyro.orientation_wxyz)
+        self.last = self.estimator.update(t_ns, gyro.angular_velocity_rad_s, radii)
+        return self.last
+
+    def estimated_model(self) -> RobotModel:
+        """The robot with the estimated masses (the MPC plans with it)."""
+        return self.estimator.estimated_model()
