@@ -58,10 +58,13 @@ class CommandLag:
     ``dx/dt = (u - x) / tau`` on every command (position and velocity alike),
     ``u`` held over a command period ``period_s``: exactly
     ``x_{k+1} = x_k + alpha (u_k - x_k)``, ``alpha = 1 - exp(-period / tau)``
-    (``tau = 0``: no lag, ``alpha = 1``). The one actuator model: the simulated
-    robot's servos follow :meth:`apply`; the allocator, which knows what it sent,
-    runs the same recursion in :meth:`lead` to send the command whose lagged value
-    is the one it wants now (``u_k = x_k + (d_k - x_k) / alpha``).
+    (``tau = 0``: no lag, ``alpha = 1``). The simulated robot's servos follow
+    :meth:`apply`. The controllers expect it by commanding ahead: a first-order lag
+    delays a smooth command by about ``tau``, so the MPC sends each setpoint ``tau``
+    early on its plan (``ControllerConfig.actuator_lag_s``). Inverting the lag in the
+    allocator instead (``u = x + (d - x) / alpha``, 5.5x for 50 ms at 10 ms) hits the
+    joint limits and the actuator speed and breaks hip-knee step (measured: tether
+    slack down to -27 N on the paper's tumble; none with the preview).
     """
 
     def __init__(self, time_constant_s: float, period_s: float) -> None:
@@ -88,28 +91,3 @@ class CommandLag:
                 x + self.alpha * (c - x) for x, c in zip(self._state, u, strict=True)
             )
         return self._state
-
-    def lead(
-        self,
-        position: NDArray[np.float64],
-        velocity: NDArray[np.float64],
-        limits: ActuatorLimits | None = None,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The joint command to send so that the lagged one becomes (position, velocity).
-
-        Within ``limits`` (a command outside the joint range or the actuator speed is
-        invalid whatever follows it): clipped there, and the lag state advanced by
-        what is sent, so the next command makes up the rest.
-        """
-        d = (np.array(position, dtype=float), np.array(velocity, dtype=float))
-        if self._state is None or self.alpha == 1.0:
-            sent = d
-        else:
-            sent = tuple(x + (c - x) / self.alpha for x, c in zip(self._state, d, strict=True))
-        if limits is not None:
-            sent = (
-                np.clip(sent[0], limits.position_min, limits.position_max),
-                np.clip(sent[1], -limits.speed_max, limits.speed_max),
-            )
-        self.apply(*sent)
-        return sent[0], sent[1]

@@ -15,7 +15,7 @@ beside each number, so every package uses the same ones.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -160,6 +160,12 @@ class RobotModel:
     def tether_speed_max_m_s(self) -> float:
         """Reel speed: actuator output speed times spool radius [m/s]."""
         return self.joint_speed_max_rad_s * self.tether_spool_radius_m
+
+
+def with_masses(model: RobotModel, masses_kg: ArrayLike) -> RobotModel:
+    """``model`` with other masses (m_x, m_y, m_z) [kg], the same geometry."""
+    mx, my, mz = (float(v) for v in np.asarray(masses_kg, dtype=float).reshape(3))
+    return replace(model, body_mass_kg=mx, limb_mass_y_kg=my, limb_mass_z_kg=mz)
 
 
 def angular_velocity_after_morphing(

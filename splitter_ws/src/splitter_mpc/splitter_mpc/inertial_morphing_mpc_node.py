@@ -40,9 +40,9 @@ from splitter_mpc.core.controller import MorphingController
 from splitter_mpc.core.mpc_tick import (
     PARAMETER_CLASSES,
     PARAMETER_NAMES,
-    TICK_INPUTS,
     MpcAnswer,
     MpcTick,
+    checked_masses,
     checked_rate,
     controller_config_from_parameters,
     tick_settings_from_parameters,
@@ -54,6 +54,7 @@ from splitter_msgs_py.conversions import (
     pose_from_msg,
     principal_inertia_from_msg,
     twist_from_msg,
+    vector3_from_msg,
     vector3_to_msg,
 )
 from splitter_msgs_py.node_pattern import admitted_stamp, default_sim_time, run_node, sim_clock_ns
@@ -113,6 +114,11 @@ INPUTS: dict[str, tuple[type, object, Callable[[object], object]]] = {
     names.ATTITUDE_REFERENCE_POSE: (PoseStamped, LATCHED_QOS, _read_q_ref),
     names.GAIT_PHASE: (String, LATCHED_QOS, lambda msg: msg.data),  # no stamp
     names.JUMP_COMMAND: (WrenchStamped, qos_for(names.JUMP_COMMAND), lambda msg: None),
+    names.ESTIMATE_MASSES: (
+        Vector3Stamped,
+        qos_for(names.ESTIMATE_MASSES),
+        lambda msg: checked_masses(vector3_from_msg(msg).vector),
+    ),
 }
 
 
@@ -152,6 +158,8 @@ class InertialMorphingMpcNode(Node):
             DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
         )
         for topic, (msg_type, qos, _read) in INPUTS.items():
+            if topic == names.ESTIMATE_MASSES and not settings.estimated_masses:
+                continue
             self.create_subscription(
                 msg_type, topic, lambda msg, topic=topic: self._on_input(topic, msg), qos
             )
@@ -196,7 +204,7 @@ class InertialMorphingMpcNode(Node):
                 topic,
                 msg,
                 clock_ns=self._clock_ns,
-                not_before_ns=self.tick.last_answered if topic in TICK_INPUTS else None,
+                not_before_ns=self.tick.last_answered if topic in self.tick.tick_inputs else None,
                 consequence="keeping the last good data",
             )
             if t_ns is None:

@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead, CommandLeadConfig
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
-from splitter_model.actuators import TETHER_INDEX, CommandLag, actuator_limits
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import (
     PAPER_INITIAL_RADII_M,
     RobotModel,
@@ -87,13 +87,6 @@ class AllocatorTickSettings:
     )
     diagnostics_period_s: float = parameter_field(  # [s]
         0.1, "diagnostics period in simulated time [s]", bounds=(1e-3, 100.0), live=True
-    )
-    actuator_lag_s: float = parameter_field(  # [s]
-        0.0,
-        "time constant of the first-order lag between a joint command and what the servos "
-        "follow (the robot's actuator model, splitter_model.actuators.CommandLag); the "
-        "commands are led through it so that the lagged command is the allocation [s]",
-        bounds=(0.0, 1.0),
     )
 
 
@@ -175,8 +168,6 @@ class AllocatorTick:
         self.allocator: TetherLimbAllocator | None = None
         self.period_ns = round(config.control_period_s * 1e9)
         self.lead = CommandLead(self.period_ns)
-        self.actuator_limits = actuator_limits(model)
-        self.command_lag = CommandLag(settings.actuator_lag_s, self.period_ns * 1e-9)
         self.configure(config, settings, lead or CommandLeadConfig())
         self.latency = InputLatency()  # simulated clock at use - stamp, per input
         self.stamps = StampGate(MAX_STAMP_LEAD_NS)
@@ -198,12 +189,6 @@ class AllocatorTick:
         # [kg m^2] inertia the commands plan at their stamps (the last second), to
         # predict the body rate at a command stamped ahead of its input
         self._planned_inertia: dict[int, NDArray[np.float64]] = {}
-
-    def set_mass_model(self, model: RobotModel) -> None:
-        """Allocate for a robot with these masses from now on (an estimate; same geometry)."""
-        self.model = model
-        if self.allocator is not None:
-            self.allocator.model = model
 
     def configure(
         self, config: AllocatorConfig, settings: AllocatorTickSettings, lead: CommandLeadConfig
@@ -365,13 +350,6 @@ class AllocatorTick:
         allocation = allocator.allocate(
             t_ns, setpoint, self._rate_at(t_ns, setpoint_t_ns), setpoint_t_ns
         )
-        if self.command_lag.alpha < 1.0:  # what to send for the servos to follow this
-            sent = self.command_lag.lead(
-                allocation.joint_position, allocation.joint_velocity, self.actuator_limits
-            )
-            allocation = dataclasses.replace(
-                allocation, joint_position=sent[0], joint_velocity=sent[1]
-            )
         self.last_allocation = allocation
         self._last_command_ns = t_ns
         if self.lead.lead_ns > 0:

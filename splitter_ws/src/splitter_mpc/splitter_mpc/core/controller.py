@@ -69,6 +69,15 @@ class ControllerConfig:
         0.01, "setpoint period [s]", bounds=(0.001, 1.0)
     )
     nominal_inertia_kg_m2: tuple[float, float, float] | None = None  # held when inactive
+    # The actuators follow a first-order lag of this time constant (the robot's servos,
+    # splitter_model.actuators.CommandLag): a smooth command arrives about that late, so
+    # each setpoint is the plan's value this much ahead of its tick.
+    actuator_lag_s: float = parameter_field(  # [s]
+        0.0,
+        "the actuators' first-order lag time constant: each setpoint is taken this far "
+        "ahead on the plan, so the lagging shape follows the plan on time [s] (0: none)",
+        bounds=(0.0, 1.0),
+    )
     # Recovery (supervisory): while the body rate across the reference axis is above
     # ``recovery_enter_rate_rad_s``, the MPC is asked for a spin of at least
     # ``recovery_spin_rad_s`` about that axis (0: off), until that rate falls under
@@ -104,6 +113,9 @@ class ControllerConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        lag = self.actuator_lag_s
+        if not (isinstance(lag, int | float) and math.isfinite(lag) and 0.0 <= lag <= 1.0):
+            raise ValueError(f"actuator_lag_s must be in [0, 1] s, got {lag!r}")
         recovery = ("recovery_spin_rad_s", "recovery_enter_rate_rad_s", "recovery_exit_rate_rad_s")
         for name in recovery:
             value = getattr(self, name)
@@ -132,6 +144,10 @@ class ControllerConfig:
             nominal = np.asarray(self.nominal_inertia_kg_m2, dtype=float)
             if nominal.shape != (3,) or not np.all(np.isfinite(nominal) & (nominal > 0.0)):
                 raise ValueError(f"nominal_inertia_kg_m2 must be 3 positive numbers, got {nominal}")
+
+    @property
+    def actuator_lag_ns(self) -> int:
+        return round(self.actuator_lag_s * NS_PER_S)
 
     @property
     def replan_period_ns(self) -> int:
@@ -304,7 +320,9 @@ class MorphingController(Closable):
             setpoint = (
                 inertia.copy()
                 if self._plan is None
-                else self._plan.setpoint_at(t_ns, self.config.control_period_ns)
+                else self._plan.setpoint_at(
+                    t_ns + self.config.actuator_lag_ns, self.config.control_period_ns
+                )
             )
         if not np.all(np.isfinite(setpoint)):
             _LOG.error("non-finite setpoint %s at t = %d ns: holding", setpoint, t_ns)

@@ -231,7 +231,10 @@ class MpcPlan:
     dt_ns: int  # [ns]
     angular_velocity: NDArray[np.float64]  # (N+1, 3) predicted [rad/s]
     orientation: NDArray[np.float64] | None  # (N+1, 4) predicted; None: OCP without attitude
-    inertia: NDArray[np.float64]  # (N+1, 3) planned principal moments [kg m^2]
+    # (N+1, 3) [kg m^2] the planned shape as the built model's principal moments (what
+    # the allocator, which allocates with that model, turns back into the planned radii;
+    # with set_mass_model the robot's own moments differ from these by its masses)
+    inertia: NDArray[np.float64]
     radii: NDArray[np.float64]  # (N+1, 3) planned radii [m]
     result: SolverResult
 
@@ -319,7 +322,9 @@ class InertialMorphingMpc(Closable):
         built OCP in the scaled coordinates ``s~ = D s`` is exactly the model's: the
         dynamics and costs are the built ones, and the box bounds on ``s`` and its rate
         become box bounds on ``s~`` scaled by D (:meth:`problem`). The tension row keeps
-        the built ``m_x`` (the estimator keeps the nominal ``m_x``).
+        the built ``m_x`` (the estimator keeps the nominal ``m_x``). Plans are returned
+        as shapes (:attr:`MpcPlan.inertia` in the built model's moments), so the setpoints
+        mean the same radii to an allocator that knows only the built model.
         """
         built = self.ocp.inertia_map
         wanted = inertia_map(model)
@@ -398,6 +403,8 @@ class InertialMorphingMpc(Closable):
             result = self.backend.solve(data)
         xs, _ = self.ocp.split(result.z)
         layout = self.ocp.state
+        shape = xs.copy()  # the planned radii^2, whatever masses were planned with
+        shape[:, layout.radii_sq] /= self.column_scale
         if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
             self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
         return MpcPlan(
@@ -405,8 +412,8 @@ class InertialMorphingMpc(Closable):
             dt_ns=self.settings.dt_ns,
             angular_velocity=xs[:, layout.w],
             orientation=xs[:, layout.q] if layout.attitude else None,
-            inertia=self.ocp.inertia_of(xs),
-            radii=np.sqrt(np.maximum(xs[:, layout.radii_sq] / self.column_scale, 0.0)),
+            inertia=self.ocp.inertia_of(shape),
+            radii=np.sqrt(np.maximum(shape[:, layout.radii_sq], 0.0)),
             result=result,
         )
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_model.model import angular_velocity_after_morphing
+from splitter_model.model import angular_velocity_after_morphing, with_masses
 from splitter_mpc.core.controller import ControllerConfig, ControllerStatus, MorphingController
 from splitter_mpc.core.mpc import NS_PER_S, MpcSettings, settings_for_weights
 from splitter_mpc.core.ocp import MpcWeights
@@ -64,6 +64,11 @@ class MpcTickSettings:
     )
     diagnostics_period_s: float = parameter_field(
         0.1, "diagnostics period, simulated time [s]", bounds=PERIOD_S, live=True
+    )
+    estimated_masses: bool = parameter_field(
+        False,
+        "plan with the masses /splitter/estimate/masses gives, stamped with each tick (the "
+        "flight estimator's; a tick waits for them), instead of the nominal model's",
     )
 
     @property
@@ -148,6 +153,17 @@ def controller_diagnostics(
     return level, message, values
 
 
+MAX_MASS_KG = 1.0e3  # [kg] a lumped mass beyond it is corrupt
+
+
+def checked_masses(masses_kg: ArrayLike) -> NDArray[np.float64]:
+    """(m_x, m_y, m_z) [kg] if each is in (0, ``MAX_MASS_KG``]; ``MessageValidationError``."""
+    m = np.asarray(masses_kg, dtype=float)
+    if not np.all((m > 0.0) & (m <= MAX_MASS_KG)):  # NaN too
+        raise MessageValidationError(f"vector: masses must be in (0, {MAX_MASS_KG}] kg, got {m}")
+    return m
+
+
 @dataclass(frozen=True)
 class MpcAnswer:
     """Tick ``t_ns`` answered: the setpoint, or ``error`` (the controller refused the state)."""
@@ -171,7 +187,10 @@ class MpcTick:
         self.settings = settings or MpcTickSettings()
         self._check_periods(self.settings, controller.config)
         self.has_publisher = has_publisher  # a gait manager in the graph is waited for
-        self.ticks = TickAssembler(controller.config.control_period_ns, TICK_INPUTS)
+        self.tick_inputs = TICK_INPUTS + (
+            (names.ESTIMATE_MASSES,) if self.settings.estimated_masses else ()
+        )
+        self.ticks = TickAssembler(controller.config.control_period_ns, self.tick_inputs)
         self.stamps = StampGate()
         self.latency = InputLatency()  # a tick's state: simulated clock when used - stamp
         self.phase: str | None = None
@@ -224,7 +243,7 @@ class MpcTick:
             if value not in names.GAIT_PHASES:
                 raise ValueError(f"unknown phase {value!r}")
             self.phase = str(value)
-        elif topic in TICK_INPUTS:
+        elif topic in self.tick_inputs:
             events = self.ticks.add(topic, t_ns, value)
             if events.completed is not None:
                 self._waiting = events.completed
@@ -262,9 +281,16 @@ class MpcTick:
         orientation_wxyz: ArrayLike,
         inertia_kg_m2: ArrayLike,
         clock_ns: ClockNs = None,
+        *,
+        masses_kg: ArrayLike | None = None,
     ) -> MpcAnswer | None:
-        """Tick ``t_ns``'s state from plain values (the library loop); None: the tick waits."""
+        """Tick ``t_ns``'s state from plain values (the library loop); None: the tick waits.
+
+        ``masses_kg`` (m_x, m_y, m_z) when the tick takes estimated masses.
+        """
         rate = checked_rate("angular_velocity", angular_velocity_rad_s)
+        if masses_kg is not None:
+            self.add(names.ESTIMATE_MASSES, t_ns, np.asarray(masses_kg, dtype=float), clock_ns)
         self.add(names.IMU, t_ns, (rate, np.asarray(orientation_wxyz, dtype=float)), clock_ns)
         return self.add(names.INERTIA, t_ns, np.asarray(inertia_kg_m2, dtype=float), clock_ns)
 
@@ -292,6 +318,9 @@ class MpcTick:
             return None
         (t_ns, inputs), self._waiting = self._waiting, None
         (w, q), inertia = inputs[names.IMU], inputs[names.INERTIA]  # type: ignore[misc]
+        masses = inputs.get(names.ESTIMATE_MASSES)
+        if masses is not None:
+            self.controller.set_mass_model(with_masses(self.controller.model, masses))
         self.latency.record("state", t_ns, clock_value(clock_ns))
         if self.settings.plan_from_setpoints and self._last_setpoint is not None:
             # the commands stamped ahead reach the last setpoint before this tick's does
