@@ -249,33 +249,33 @@ def test_campaign_rejects_bad_input(tmp_path, capsys) -> None:
     assert "variant 'x'" in capsys.readouterr().err
 
 
-# --- the closed loop's perturbation hooks ------------------------------------------------
+# --- the draws' robot errors in the closed loop ------------------------------------------
 @pytest.mark.slow
-def test_the_closed_loop_flies_the_perturbed_plant_sensor_and_actuators() -> None:
+def test_the_closed_loop_flies_the_draws_robot_errors() -> None:
     from dataclasses import replace
 
-    from splitter_bringup.run.library import Perturbation, run_closed_loop
+    from splitter_bringup.analysis.campaign import robot_errors_for_draw
+    from splitter_bringup.run.library import run_closed_loop
     from splitter_bringup.scenario.definition import load_scenario
+    from splitter_sim.core.robot_errors import RobotErrors
 
     scenario = replace(load_scenario("spin_stabilization", "mpc"), duration_s=0.3)
     nominal = run_closed_loop(scenario)
-    same = run_closed_loop(scenario, perturbation=Perturbation())
-    assert np.array_equal(nominal.angular_velocity_rad_s, same.angular_velocity_rad_s)
     draw = make_draw(0, 7, perturbation=PerturbationSpec(mass_fraction=0.1))
-    from splitter_bringup.analysis.campaign import plant_model
-
-    heavy = Perturbation(plant_model=plant_model(draw))
-    flown = run_closed_loop(scenario, perturbation=heavy)
-    # other masses, other inertia from the first sample on; the momentum I w is the same
+    assert robot_errors_for_draw(draw, PerturbationSpec()) == RobotErrors()
+    assert not replace(RobotErrors(), noise_seed=3).present  # a seed alone is no error
+    same = run_closed_loop(replace(scenario, robot_errors=RobotErrors()))
+    assert np.array_equal(nominal.angular_velocity_rad_s, same.angular_velocity_rad_s)
+    heavy = robot_errors_for_draw(draw, PerturbationSpec(mass_fraction=0.1))
+    flown = run_closed_loop(replace(scenario, robot_errors=heavy))
+    # other masses, other inertia from the first sample on
     assert not np.allclose(flown.principal_inertia_kg_m2[0], nominal.principal_inertia_kg_m2[0])
-    noisy = run_closed_loop(
-        scenario,
-        perturbation=Perturbation(
-            gyro_noise_rad_s=0.01, gyro_bias_rad_s=(0.01, 0.0, 0.0), actuator_lag_s=0.2, seed=3
-        ),
+    assert "estimate_masses_kg" in flown.extras  # the controllers flew on the estimator
+    errors = RobotErrors(
+        gyro_noise_rad_s=0.01, gyro_bias_rad_s=(0.01, 0.0, 0.0), actuator_lag_s=0.2, noise_seed=3
     )
+    noisy = run_closed_loop(replace(scenario, robot_errors=errors), estimator=False)
     assert not np.array_equal(noisy.radii_m, nominal.radii_m)
+    assert "estimate_masses_kg" not in noisy.extras
     # the true rate is recorded, not the gyro's reading: it starts where the scenario does
     assert np.array_equal(noisy.angular_velocity_rad_s[0], nominal.angular_velocity_rad_s[0])
-    with pytest.raises(ValueError, match="actuator_lag_s"):
-        Perturbation(actuator_lag_s=-1.0)

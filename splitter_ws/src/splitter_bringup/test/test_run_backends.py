@@ -32,4 +32,4 @@ def test_unknown_backend_and_missing_run_folder_are_refused(tmp_path) -> None:
     with pytest.raises(ValueError, match="out_dir"):
         run(scenario, "processes")
     with pytest.raises(ValueError, match="library-backend"):
-        run(scenario, "inprocess", out_dir=tmp_path, perturbation=object())
+        run(scenario, "inprocess", out_dir=tmp_path, estimator=False)

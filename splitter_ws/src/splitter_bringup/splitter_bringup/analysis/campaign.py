@@ -68,6 +68,7 @@ from scipy.spatial.transform import Rotation
 
 from splitter_bringup.scenario.definition import Scenario
 from splitter_model.model import RobotModel
+from splitter_sim.core.robot_errors import RobotErrors
 
 W_MIN_RAD_S = 0.5  # [rad/s] default lower bound of |w0|
 W_MAX_RAD_S = 1.8  # [rad/s] default upper bound of |w0|
@@ -203,16 +204,26 @@ def scenario_for_draw(base: Scenario, draw: Draw, duration_s: float | None = Non
     )
 
 
+def robot_errors_for_draw(draw: Draw, spec: PerturbationSpec | None = None) -> RobotErrors:
+    """The robot a draw flies (``Scenario.robot_errors``): its masses, gyro and lag.
+
+    Only what ``spec`` switches on (the draw always carries all its numbers).
+    """
+    p = spec or PerturbationSpec()
+    if not p.active:
+        return RobotErrors()
+    return RobotErrors(
+        mass_scale=draw.mass_scale if p.mass_fraction > 0.0 else (1.0, 1.0, 1.0),
+        gyro_noise_rad_s=p.gyro_noise_rad_s,
+        gyro_bias_rad_s=draw.gyro_bias_rad_s,
+        actuator_lag_s=p.actuator_lag_s,
+        noise_seed=draw.noise_seed,
+    )
+
+
 def plant_model(draw: Draw, nominal: RobotModel | None = None) -> RobotModel:
     """The robot a perturbed draw flies: the nominal one with the draw's masses."""
-    nominal = nominal or RobotModel()
-    sx, sy, sz = draw.mass_scale
-    return replace(
-        nominal,
-        body_mass_kg=nominal.body_mass_kg * sx,
-        limb_mass_y_kg=nominal.limb_mass_y_kg * sy,
-        limb_mass_z_kg=nominal.limb_mass_z_kg * sz,
-    )
+    return RobotErrors(mass_scale=draw.mass_scale).plant_model(nominal or RobotModel())
 
 
 def scenario_document(base: Scenario, draw: Draw, duration_s: float | None = None) -> dict:

@@ -25,7 +25,7 @@ from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
 
 if TYPE_CHECKING:  # the library loop and the MPC load only when a run starts
-    from splitter_bringup.run.library import Perturbation, ProgressCallback
+    from splitter_bringup.run.library import ProgressCallback
     from splitter_mpc.core.estimator import EstimatorConfig
     from splitter_mpc.core.mpc import MpcSettings
 
@@ -52,7 +52,7 @@ def run_variant(
     *,
     out_dir: Path | None = None,
     mpc: MpcSettings | None = None,
-    perturbation: Perturbation | None = None,
+    estimator: bool | None = None,
     estimation: EstimatorConfig | None = None,
     progress: ProgressCallback | None = None,
     domain_id: int | None = None,
@@ -60,18 +60,19 @@ def run_variant(
     """Run ``scenario`` (its chosen variant) on ``backend`` to its end.
 
     Library backend: ``mpc`` sets the MPC's solver options (None: the scenario's),
-    ``perturbation`` makes the plant differ from the model, ``progress`` receives the
-    fraction done. Graph backends: the run folder is ``out_dir/<variant>`` (bag, node
+    ``estimator`` (None: as the graph, on with robot errors) and ``estimation`` set the
+    flight estimator (:func:`~splitter_bringup.run.library.run_closed_loop`), ``progress``
+    receives the fraction done. Graph backends: the run folder is ``out_dir/<variant>`` (bag, node
     logs, parameter files), ``domain_id`` None chooses a free ROS domain.
     """
     if backend == LIBRARY:
-        return _run_library(scenario, mpc, perturbation, progress, estimation)
+        return _run_library(scenario, mpc, progress, estimator, estimation)
     if backend not in BACKENDS:
         raise ValueError(f"backend {backend!r} is not one of {BACKENDS}")
     if out_dir is None:
         raise ValueError(f"the {backend} backend records a bag: it needs out_dir")
-    if perturbation is not None or mpc is not None or estimation is not None:
-        raise ValueError("perturbation, estimation and mpc settings are library-backend options")
+    if estimator is not None or mpc is not None or estimation is not None:
+        raise ValueError("estimator, estimation and mpc settings are library-backend options")
     return _run_graph(scenario, out_dir, in_process=backend == IN_PROCESS, domain_id=domain_id)
 
 
@@ -83,8 +84,8 @@ def run(scenario: Scenario, backend: str = LIBRARY, **options: Any) -> RunSeries
 def _run_library(
     scenario: Scenario,
     mpc: MpcSettings | None,
-    perturbation: Perturbation | None,
     progress: ProgressCallback | None,
+    estimator: bool | None = None,
     estimation: EstimatorConfig | None = None,
 ) -> VariantRun:
     from splitter_bringup.run.library import controller_config, run_closed_loop
@@ -93,14 +94,15 @@ def _run_library(
 
     started = time.monotonic()
     model = RobotModel()
-    with MorphingController(model, controller_config(scenario, mpc)) as controller:
+    config = controller_config(scenario, mpc, knows_robot=estimator)
+    with MorphingController(model, config) as controller:
         flying = time.monotonic()
         series = run_closed_loop(
             scenario,
             progress,
             model=model,
             controller=controller,
-            perturbation=perturbation,
+            estimator=estimator,
             estimation=estimation,
         )
     return VariantRun(series, flying - started, time.monotonic() - flying)

@@ -13,6 +13,7 @@ import logging
 import os
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 from splitter_bringup.analysis.campaign import (
@@ -21,7 +22,7 @@ from splitter_bringup.analysis.campaign import (
     PerturbationSpec,
     draw_result,
     error_result,
-    plant_model,
+    robot_errors_for_draw,
 )
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.backends import LIBRARY, run
@@ -35,51 +36,21 @@ FORWARDED_ENV_PREFIXES = ("SPLITTER_",)
 FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
 
 
-def flight_perturbation(draw: Draw, spec: PerturbationSpec | None):
-    """The closed loop's :class:`~splitter_bringup.run.library.Perturbation` of a draw.
-
-    None when ``spec`` perturbs nothing (the nominal closed loop, bit for bit).
-    """
-    from splitter_bringup.run.library import Perturbation
-
-    if spec is None or not spec.active:
-        return None
-    return Perturbation(
-        plant_model=plant_model(draw) if spec.mass_fraction > 0.0 else None,
-        gyro_noise_rad_s=spec.gyro_noise_rad_s,
-        gyro_bias_rad_s=draw.gyro_bias_rad_s,
-        actuator_lag_s=spec.actuator_lag_s,
-        seed=draw.noise_seed,
-        actuator_lag_model_s=None if spec.estimator else 0.0,
-    )
-
-
-def flight_estimation(spec: PerturbationSpec | None):
-    """The estimator a draw's controllers fly on: on in a perturbed campaign (unless
-    ``spec.estimator`` is False), None in a nominal one (the nominal loop, bit for bit)."""
-    from splitter_mpc.core.estimator import EstimatorConfig
-
-    if spec is None or not spec.active or not spec.estimator:
-        return None
-    return EstimatorConfig()
-
-
 def fly_draw(
     scenario: Scenario, draw: Draw, perturbation: PerturbationSpec | None = None
 ) -> RunSeries:
     """The :class:`~splitter_bringup.analysis.series.RunSeries` of a draw's flight.
 
-    ``scenario`` is already set to the draw (:func:`scenario_for_draw`). The library
-    backend (:func:`splitter_bringup.run.backends.run`): the closed loop with the
-    scenario's MPC, a fresh controller and solver worker, so that a draw never depends
-    on the ones flown before it.
+    ``scenario`` is already set to the draw (:func:`scenario_for_draw`); the draw's
+    robot errors (:func:`robot_errors_for_draw`) are flown by its simulator, and the
+    controllers then fly on the flight estimator unless ``perturbation.estimator`` is
+    False. The library backend (:func:`splitter_bringup.run.backends.run`): the closed
+    loop with the scenario's MPC, a fresh controller and solver worker, so that a draw
+    never depends on the ones flown before it.
     """
-    return run(
-        scenario,
-        LIBRARY,
-        perturbation=flight_perturbation(draw, perturbation),
-        estimation=flight_estimation(perturbation),
-    )
+    spec = perturbation or PerturbationSpec()
+    flown = replace(scenario, robot_errors=robot_errors_for_draw(draw, spec))
+    return run(flown, LIBRARY, estimator=None if spec.estimator else False)
 
 
 def run_draw(

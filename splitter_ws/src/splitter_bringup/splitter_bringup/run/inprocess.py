@@ -72,7 +72,12 @@ def create_node(launch: NodeLaunch, context: Context) -> Node:
     module, name = launch.node_class.split(":")
     node_class = getattr(importlib.import_module(module), name)
     overrides = [Parameter(k, value=v) for k, v in launch.parameters.items()]
-    return node_class(context=context, parameter_overrides=overrides)
+    remaps = launch.remapping_args()
+    if not remaps:
+        return node_class(context=context, parameter_overrides=overrides)
+    return node_class(
+        context=context, parameter_overrides=overrides, cli_args=["--ros-args", *remaps]
+    )
 
 
 @dataclass

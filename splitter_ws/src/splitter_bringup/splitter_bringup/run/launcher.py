@@ -199,7 +199,11 @@ def _launch(
             supervisor.start(
                 ProcessSpec(
                     node.name,
-                    node_argv(node.entry, params, ["-r", f"__node:={node.name}"]),
+                    node_argv(
+                        node.entry,
+                        params,
+                        ["-r", f"__node:={node.name}", *node.remapping_args()],
+                    ),
                     env,
                     ends_run=node.name == "simulator",
                     stops_last=node.name == "recorder",

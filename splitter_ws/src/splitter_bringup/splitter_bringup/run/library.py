@@ -33,97 +33,32 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
-from splitter_bringup.scenario.graph_config import gait_parameters
-from splitter_ik.core.allocator_tick import AllocatorTick, AllocatorTickSettings
-from splitter_model.actuators import TETHER_INDEX, CommandLag
-from splitter_model.kinematics import radii_from_joint_positions
+from splitter_bringup.scenario.graph_config import flies_on_estimates, gait_parameters
+from splitter_bringup.scenario.simulation import simulator_tick
+from splitter_ik.core.allocator_tick import AllocatorTick
+from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
-from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator
+from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
+from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample
 from splitter_mpc.core.gait_tick import BodyState, GaitTick, gait_settings_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
-from splitter_mpc.core.mpc_tick import MpcTick
+from splitter_mpc.core.mpc_tick import MpcTick, MpcTickSettings
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
-from splitter_sim.core.settings import SimulatorSettings, initial_state_from_euler
-from splitter_sim.core.simulator import SimConfig, Simulator
-from splitter_sim.core.tick import SimulatorTick
+from splitter_sim.core.simulator import Simulator
 
 _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
 CONTROL_PERIOD_NS = 10_000_000  # [ns] the control tick (docs/ARCHITECTURE.md)
 
 ProgressCallback = Callable[[float], None]  # called with the fraction done, in [0, 1]
-
-
-@dataclass(frozen=True)
-class Perturbation:
-    """How the plant and its sensors differ from what the controller assumes (robustness runs).
-
-    * ``plant_model``: the robot the simulator flies (e.g. other masses); the MPC and
-      the allocator keep the nominal ``model`` of :func:`run_closed_loop`.
-    * ``gyro_noise_rad_s``, ``gyro_bias_rad_s``: the rate gyro of ``/splitter/imu``, what
-      the MPC and the allocator read, reports the true body rate plus this constant
-      bias plus white Gaussian noise of this standard deviation per axis and reading
-      (one reading per control tick, drawn from ``seed``). The gait phase manager
-      reads odometry and the orientation stays exact.
-    * ``actuator_lag_s``: every joint and tether command reaches the simulator's servos
-      through a first-order lag of this time constant (position and velocity alike,
-      on top of the servos' rate and acceleration limits): the shape follows late.
-    """
-
-    plant_model: RobotModel | None = None
-    gyro_noise_rad_s: float = 0.0  # [rad/s] standard deviation per axis and reading
-    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
-    actuator_lag_s: float = 0.0  # [s] time constant, 0: none
-    seed: int = 0  # of the gyro noise
-    # [s] the lag the robot's allocator leads its commands through (its actuator model);
-    # None: the true one (the robot knows its servos)
-    actuator_lag_model_s: float | None = None
-
-    @property
-    def modelled_actuator_lag_s(self) -> float:
-        """[s] the lag time constant the controllers assume."""
-        if self.actuator_lag_model_s is None:
-            return self.actuator_lag_s
-        return self.actuator_lag_model_s
-
-    def __post_init__(self) -> None:
-        for name in ("gyro_noise_rad_s", "actuator_lag_s"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"Perturbation.{name} must be finite and >= 0, got {value!r}")
-        bias = np.asarray(self.gyro_bias_rad_s, dtype=float)
-        if bias.shape != (3,) or not np.all(np.isfinite(bias)):
-            raise ValueError(f"Perturbation.gyro_bias_rad_s: 3 finite numbers, got {bias}")
-
-
-class _Perturbed:
-    """The gyro reading and the lagged joint commands of a :class:`Perturbation`."""
-
-    def __init__(self, perturbation: Perturbation, control_period_s: float) -> None:
-        self._p = perturbation
-        self._bias = np.asarray(perturbation.gyro_bias_rad_s, dtype=float)
-        self._rng = np.random.default_rng(perturbation.seed)
-        self._lag = CommandLag(perturbation.actuator_lag_s, control_period_s)
-
-    def gyro(self, w_rad_s: np.ndarray) -> np.ndarray:
-        """The rate gyro's reading of the true body rate ``w_rad_s`` [rad/s]."""
-        w = np.asarray(w_rad_s, dtype=float) + self._bias
-        if self._p.gyro_noise_rad_s > 0.0:
-            w = w + self._rng.normal(0.0, self._p.gyro_noise_rad_s, 3)
-        return w
-
-    def command(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The joint command (position, velocity) the servos receive, lagged."""
-        position, velocity = self._lag.apply(q, qd)
-        return position, velocity
 
 
 def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
@@ -135,29 +70,22 @@ def received_quaternion(q_wxyz, hops: int = 2) -> np.ndarray:
 
 
 def simulator_for(scenario: Scenario, model: RobotModel | None = None) -> Simulator:
-    """The simulator set up as ``scenario`` describes (initial state, step, gravity, ground)."""
-    initial = initial_state_from_euler(
-        scenario.initial_position_m,
-        scenario.initial_velocity_m_s,
-        scenario.initial_orientation_euler_deg,
-        scenario.initial_angular_velocity_rad_s,
-        scenario.initial_radii_m,
-    )
-    config = SimConfig(
-        dt_s=float(scenario.sim_dt_s),
-        gravity_m_s2=float(scenario.gravity_m_s2),
-        ground_contact=bool(scenario.ground_contact),
-        compliant_legs=bool(scenario.compliant_legs),
-    )
-    return Simulator(model or RobotModel(), config, initial)
+    """The simulator set up as ``scenario`` describes (initial state, step, gravity, ground,
+    the robot's masses): the one :func:`~splitter_bringup.scenario.simulation.simulator_tick`
+    drives."""
+    return simulator_tick(scenario, model, CONTROL_PERIOD_NS / NS_PER_S).sim
 
 
-def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> ControllerConfig:
+def controller_config(
+    scenario: Scenario, mpc: MpcSettings | None = None, *, knows_robot: bool | None = None
+) -> ControllerConfig:
     """The MPC configuration of a scenario: the node's parameters, as a core object.
 
     The scenario fixes the formulation (objective, horizon, prediction step,
     integrator, the step the weights are given for);
-    ``mpc`` brings the solver, its options and the hardware margins.
+    ``mpc`` brings the solver, its options and the hardware margins. With
+    ``knows_robot`` (None: when the controllers fly on the estimator, as the graph's
+    do) the MPC expects the robot's actuator lag.
     """
     c = scenario.controller
     weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq, objective=c.objective)
@@ -171,7 +99,10 @@ def controller_config(scenario: Scenario, mpc: MpcSettings | None = None) -> Con
         weights_step_s=c.weights_step_s,
     )
     mpc = settings_for_weights(formulation, weights)
+    if knows_robot is None:
+        knows_robot = flies_on_estimates(scenario)
     return ControllerConfig(
+        actuator_lag_s=scenario.robot_errors.actuator_lag_s if knows_robot else 0.0,
         enabled=c.enabled,
         weights=weights,
         mpc=mpc,
@@ -191,21 +122,27 @@ def run_closed_loop(
     mpc: MpcSettings | None = None,
     fail_solves_at_s: tuple[float, ...] = (),
     duration_s: float | None = None,
-    perturbation: Perturbation | None = None,
     estimation: EstimatorConfig | None = None,
+    estimator: bool | None = None,
 ) -> RunSeries:
     """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
 
     ``controller`` replaces the scenario's MPC (for benchmarks); ``mpc`` sets the
     solver options of the default one. ``fail_solves_at_s`` injects a solver
     failure at the re-plans at those times (tests of the failure handling).
-    ``duration_s`` shortens the run. ``perturbation`` makes the plant, its gyro and
-    its actuators differ from what the controller assumes (:class:`Perturbation`);
-    the series records the true state.
+    ``duration_s`` shortens the run. The simulator flies the scenario's
+    ``robot_errors`` (masses, gyro, actuator lag); the controllers then fly on the
+    flight estimator (``estimation`` its noise model) as the graph's do
+    (:func:`~splitter_bringup.scenario.graph_config.flies_on_estimates`), unless
+    ``estimator`` says otherwise (False: they read the gyro and the simulator's inertia
+    as they are, and do not lead their commands through the lag). The series records
+    the true state.
     """
     model = model or RobotModel()
+    estimated = flies_on_estimates(scenario) if estimator is None else bool(estimator)
     if controller is None:
-        with MorphingController(model, controller_config(scenario, mpc)) as own:
+        config = controller_config(scenario, mpc, knows_robot=estimated)
+        with MorphingController(model, config) as own:
             return run_closed_loop(
                 scenario,
                 progress,
@@ -213,26 +150,14 @@ def run_closed_loop(
                 controller=own,
                 fail_solves_at_s=fail_solves_at_s,
                 duration_s=duration_s,
-                perturbation=perturbation,
                 estimation=estimation,
+                estimator=estimator,
             )
-    plant = None if perturbation is None else perturbation.plant_model
-    sim = SimulatorTick(
-        simulator_for(scenario, plant or model),
-        SimulatorSettings(control_period_s=CONTROL_PERIOD_NS / NS_PER_S),
-    )
-    perturbed = (
-        None if perturbation is None else _Perturbed(perturbation, CONTROL_PERIOD_NS / NS_PER_S)
-    )
+    sim = simulator_tick(scenario, model, CONTROL_PERIOD_NS / NS_PER_S)
     gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
-    mpc_tick = MpcTick(controller)
-    allocator = AllocatorTick(  # starts, as its node, from the first measured inertia
-        model,
-        settings=AllocatorTickSettings(
-            actuator_lag_s=0.0 if perturbation is None else perturbation.modelled_actuator_lag_s
-        ),
-    )
-    estimator = None if estimation is None else FlightEstimator(model, estimation)
+    mpc_tick = MpcTick(controller, MpcTickSettings(estimated_masses=estimated))
+    allocator = AllocatorTick(model)  # starts, as its node, from the first measured inertia
+    flight = EstimatorTick(model, estimation, CONTROL_PERIOD_NS) if estimated else None
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
     duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
     dt_ns = sim.sim.config.dt_ns
@@ -241,7 +166,7 @@ def run_closed_loop(
         raise ValueError(f"sim step {dt_ns} ns does not divide the control tick")
 
     rec: dict[str, list] = {k: [] for k in _RECORDED}
-    rec_est: list = []
+    estimates: list[FlightEstimate] = []
     phases: list[str] = []
     setpoint = np.asarray(sim.state().principal_inertia_kg_m2, dtype=float)
     phase_name = ""
@@ -251,29 +176,18 @@ def run_closed_loop(
     for step in range(n_steps + 1):
         state = sim.state()
         t = state.t_ns
+        gyro = sim.gyro_reading(state)  # the rate of the imu message (one per step)
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
-            gyro = (  # the rate of the imu message
-                state.angular_velocity_rad_s
-                if perturbed is None
-                else perturbed.gyro(state.angular_velocity_rad_s)
-            )
-            inertia_used = state.principal_inertia_kg_m2
-            if estimator is not None:
-                radii_measured = radii_from_joint_positions(model, state.joint_position)
-                in_flight = not (
-                    bool(np.any(state.in_contact)) or bool(np.any(state.thrust_force_n))
-                )
-                if not estimator.started:
-                    estimator.start(t, gyro, radii_measured, q_measured)
-                estimate = estimator.update(t, gyro, radii_measured, in_flight=in_flight)
-                gyro = estimate.angular_velocity_rad_s
-                inertia_used = estimate.principal_inertia_kg_m2
-                estimated = estimator.estimated_model()
-                controller.set_mass_model(estimated)
-                allocator.set_mass_model(estimated)
-                rec_est.append((t, estimate))
+            rate, attitude, inertia = gyro, q_measured, state.principal_inertia_kg_m2
+            masses = None
+            if flight is not None:  # the controllers' imu and inertia: the estimator's
+                estimate = flight.on_sensors(t, GyroSample(gyro, q_measured), state.joint_position)
+                estimates.append(estimate)
+                rate = estimate.angular_velocity_rad_s
+                attitude = received_quaternion(estimate.orientation_wxyz, hops=1)
+                inertia, masses = estimate.principal_inertia_kg_m2, estimate.masses_kg
             body = BodyState(
                 state.position_m, state.velocity_m_s, q_measured, state.angular_velocity_rad_s
             )
@@ -282,7 +196,7 @@ def run_closed_loop(
                 body,
                 state.contact_force_n,
                 float(state.joint_position[TETHER_INDEX]),
-                principal_inertia_kg_m2=inertia_used,  # /splitter/inertia
+                principal_inertia_kg_m2=state.principal_inertia_kg_m2,  # /splitter/inertia
             )
             if answer.error:
                 raise ValueError(f"gait phase manager at t = {t * 1e-9:.3f} s: {answer.error}")
@@ -297,7 +211,7 @@ def run_closed_loop(
             sim.command_jump(t, out.jump_force_n, out.jump_torque_nm)
             if t in fail_ns:
                 controller.inject_solver_failures(1)
-            planned = mpc_tick.on_state(t, gyro, q_measured, inertia_used)
+            planned = mpc_tick.on_state(t, rate, attitude, inertia, masses_kg=masses)
             if planned is None or planned.setpoint_kg_m2 is None:
                 raise ValueError(f"MPC tick at t = {t * 1e-9:.3f} s not answered: {planned}")
             setpoint = planned.setpoint_kg_m2
@@ -310,12 +224,9 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            commanded = allocator.lockstep_tick(t, inertia_used, gyro, setpoint)
+            commanded = allocator.lockstep_tick(t, inertia, rate, setpoint)
             for allocation in commanded.commands:  # one per tick in lockstep
-                position, velocity = allocation.joint_position, allocation.joint_velocity
-                if perturbed is not None:
-                    position, velocity = perturbed.command(position, velocity)
-                sim.command_joints(t, position, velocity)
+                sim.command_joints(t, allocation.joint_position, allocation.joint_velocity)
         _record(rec, state, setpoint, solve, counts)
         phases.append(phase_name)
         if step < n_steps:
@@ -329,19 +240,22 @@ def run_closed_loop(
         time.monotonic() - started,
     )
     series = _series(rec, phases, scenario.gravity_m_s2)
-    if rec_est:
-        series.extras["estimate_t_s"] = np.array([t * 1e-9 for t, _ in rec_est])
-        series.extras["estimate_gyro_bias_rad_s"] = np.array(
-            [e.gyro_bias_rad_s for _, e in rec_est]
-        )
-        series.extras["estimate_mass_ratios"] = np.array([e.mass_ratios for _, e in rec_est])
-        series.extras["estimate_rate_rad_s"] = np.array(
-            [e.angular_velocity_rad_s for _, e in rec_est]
-        )
-        series.extras["estimate_inertia_kg_m2"] = np.array(
-            [e.principal_inertia_kg_m2 for _, e in rec_est]
-        )
+    if estimates:
+        series.extras.update(estimate_extras(estimates))
     return series
+
+
+def estimate_extras(estimates: list[FlightEstimate]) -> dict[str, np.ndarray]:
+    """The flight estimator's answers as series extras (one row per control tick)."""
+    return {
+        "estimate_t_s": np.array([e.t_ns / NS_PER_S for e in estimates]),
+        "estimate_rate_rad_s": np.array([e.angular_velocity_rad_s for e in estimates]),
+        "estimate_gyro_bias_rad_s": np.array([e.gyro_bias_rad_s for e in estimates]),
+        "estimate_gyro_bias_std_rad_s": np.array([e.bias_std_rad_s for e in estimates]),
+        "estimate_mass_ratios": np.array([e.mass_ratios for e in estimates]),
+        "estimate_masses_kg": np.array([e.masses_kg for e in estimates]),
+        "estimate_inertia_kg_m2": np.array([e.principal_inertia_kg_m2 for e in estimates]),
+    }
 
 
 _RECORDED = (

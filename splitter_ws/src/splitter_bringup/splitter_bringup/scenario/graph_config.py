@@ -26,6 +26,11 @@ class NodeLaunch:
     entry: str  # "module:function" started by splitter_bringup.run.node_runner
     node_class: str  # "module:Class" for in-process graphs
     parameters: Mapping[str, Any] = field(default_factory=dict)
+    remappings: Mapping[str, str] = field(default_factory=dict)  # topic -> the one read
+
+    def remapping_args(self) -> list[str]:
+        """``-r from:=to`` for each remapping (ROS arguments)."""
+        return [arg for old, new in self.remappings.items() for arg in ("-r", f"{old}:={new}")]
 
 
 # Topics the recorder takes by default: the whole contract of DESIGN.md section 4.
@@ -50,6 +55,24 @@ REAL_TIME_COMMAND_EXTRAPOLATION_S = 0.25
 REAL_TIME_KNOT_BLEND_S = 0.01
 
 
+ESTIMATOR_NODE = "flight_estimator"
+# With robot errors the MPC and the allocator read the flight estimator's rate and inertia
+ESTIMATE_REMAPPINGS = {names.IMU: names.ESTIMATE_IMU, names.INERTIA: names.ESTIMATE_INERTIA}
+
+
+def robot_aware_mpc_parameters(scenario: Scenario) -> dict:
+    """The MPC's parameters for a robot with errors: estimated masses, its servos' lag."""
+    return {
+        "estimated_masses": True,
+        "actuator_lag_s": float(scenario.robot_errors.actuator_lag_s),
+    }
+
+
+def flies_on_estimates(scenario: Scenario) -> bool:
+    """Whether the scenario's robot has errors: then the controllers fly on the estimator."""
+    return scenario.robot_errors.present
+
+
 def simulator_parameters(
     scenario: Scenario, real_time: bool, rate_factor: float, recorder: str | None = None
 ) -> dict:
@@ -61,7 +84,10 @@ def simulator_parameters(
     return {
         "use_sim_time": False,
         "startup_wait_s": STARTUP_WAIT_S,
-        "startup_wait_for_nodes": list(CONTROLLER_NODES),
+        "startup_wait_for_nodes": [
+            *CONTROLLER_NODES,
+            *([ESTIMATOR_NODE] if flies_on_estimates(scenario) else []),
+        ],
         # the MPC creates its publisher once its solver is built (a first start compiles)
         "startup_wait_for_publishers": [names.INERTIA_SETPOINT],
         "startup_wait_for_subscribers": [recorder] if recorder else [],
@@ -187,18 +213,34 @@ def graph_nodes(
                 recorder_parameters(bag_dir),
             )
         )
+    estimated = flies_on_estimates(scenario)
+    if estimated:
+        nodes.append(
+            NodeLaunch(
+                ESTIMATOR_NODE,
+                "splitter_mpc.flight_estimator_node:main",
+                "splitter_mpc.flight_estimator_node:FlightEstimatorNode",
+                {"use_sim_time": True},
+            )
+        )
+    remaps = ESTIMATE_REMAPPINGS if estimated else {}
     nodes += [
         NodeLaunch(
             "inertial_morphing_mpc",
             "splitter_mpc.inertial_morphing_mpc_node:main",
             "splitter_mpc.inertial_morphing_mpc_node:InertialMorphingMpcNode",
-            mpc_parameters(scenario, real_time),
+            {
+                **mpc_parameters(scenario, real_time),
+                **(robot_aware_mpc_parameters(scenario) if estimated else {}),
+            },
+            remaps,
         ),
         NodeLaunch(
             "ik_tether_allocator",
             "splitter_ik.ik_tether_allocator_node:main",
             "splitter_ik.ik_tether_allocator_node:IkTetherAllocatorNode",
             allocator_parameters(scenario, real_time),
+            remaps,
         ),
         NodeLaunch(
             "gait_phase_manager",

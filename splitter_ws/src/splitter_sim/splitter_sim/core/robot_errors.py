@@ -83,6 +83,16 @@ class RobotErrors:
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= SEED_MAX:
             raise ValueError(f"noise_seed: an integer in [0, {SEED_MAX}], got {seed!r}")
 
+    @property
+    def present(self) -> bool:
+        """True when the robot differs from the nominal one (the noise seed alone is not)."""
+        return (
+            self.mass_scale != (1.0, 1.0, 1.0)
+            or self.gyro_noise_rad_s > 0.0
+            or any(self.gyro_bias_rad_s)
+            or self.actuator_lag_s > 0.0
+        )
+
     def plant_model(self, nominal: RobotModel) -> RobotModel:
         """The robot the simulator flies: ``nominal`` with its masses scaled."""
         sx, sy, sz = self.mass_scale
