@@ -153,6 +153,30 @@ def _latest_report(samples: TopicSamples, key: str, grid: NDArray[np.int64]) -> 
     return np.nan_to_num(filled.astype(float), nan=0.0)
 
 
+def estimate_extras(samples: dict[str, TopicSamples]) -> dict[str, NDArray[np.float64]]:
+    """The flight estimator's answers (``/splitter/estimate/*``) as the library loop
+    records them: one row per control tick it answered (none without an estimator)."""
+    topics = (names.ESTIMATE_IMU, names.ESTIMATE_INERTIA, names.ESTIMATE_MASSES)
+    topics += (names.ESTIMATE_GYRO_BIAS,)
+    if not all(t in samples and samples[t].stamps_ns for t in topics):
+        return {}
+    grid = common_stamps(*(samples[t].stamps_ns for t in topics))
+
+    def at(topic: str, key: str) -> NDArray[np.float64]:
+        s = samples[topic]
+        return values_at(s.stamps_ns, s.array(key), grid).astype(float)
+
+    masses = at(names.ESTIMATE_MASSES, "v")
+    return {
+        "estimate_t_s": grid.astype(float) / _NS_PER_S,
+        "estimate_rate_rad_s": at(names.ESTIMATE_IMU, "w"),
+        "estimate_gyro_bias_rad_s": at(names.ESTIMATE_GYRO_BIAS, "v"),
+        "estimate_mass_ratios": masses[:, 1:] / masses[:, :1],
+        "estimate_masses_kg": masses,
+        "estimate_inertia_kg_m2": at(names.ESTIMATE_INERTIA, "v"),
+    }
+
+
 def series_from_samples(
     samples: dict[str, TopicSamples],
     model: RobotModel | None = None,
@@ -209,6 +233,7 @@ def series_from_samples(
         extras["contact_force_n"] = np.stack(
             [values_at(w.stamps_ns, w.array("f"), grid).astype(float) for w in wrenches], axis=1
         )
+    extras.update(estimate_extras(samples))
     return RunSeries(
         t_s=grid.astype(float) / _NS_PER_S,
         angular_velocity_rad_s=at(rate_topic, "w"),

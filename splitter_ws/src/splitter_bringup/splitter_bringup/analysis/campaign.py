@@ -66,6 +66,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from splitter_bringup.analysis.summary import estimator_errors
 from splitter_bringup.scenario.definition import Scenario
 from splitter_model.model import RobotModel
 from splitter_sim.core.robot_errors import RobotErrors
@@ -368,7 +369,9 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         deadline_misses=misses,
     )
     w_end = series.angular_velocity_rad_s[-1] if n else (math.nan,) * 3
-    bias_error, ratio_error = estimation_errors(draw, extras)
+    bias_error, ratio_error = estimator_errors(
+        series, RobotErrors(mass_scale=draw.mass_scale, gyro_bias_rad_s=draw.gyro_bias_rad_s)
+    )
     return DrawResult(
         draw=draw,
         success=result.success,
@@ -382,24 +385,6 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         gyro_bias_error_rad_s=bias_error,
         mass_ratio_error=ratio_error,
     )
-
-
-def estimation_errors(draw: Draw, extras: Mapping[str, Any]) -> tuple[float, float]:
-    """(largest gyro bias error [rad/s], largest relative mass-ratio error [-]) at the end.
-
-    Against the draw's true bias and masses (:func:`plant_model`); NaN when the flight
-    had no estimator.
-    """
-    if "estimate_gyro_bias_rad_s" not in extras or len(extras["estimate_gyro_bias_rad_s"]) == 0:
-        return math.nan, math.nan
-    bias = np.asarray(extras["estimate_gyro_bias_rad_s"][-1], dtype=float)
-    bias_error = float(np.max(np.abs(bias - np.asarray(draw.gyro_bias_rad_s))))
-    plant = plant_model(draw)
-    true_ratios = np.array(
-        [plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg]
-    )
-    ratios = np.asarray(extras["estimate_mass_ratios"][-1], dtype=float)
-    return bias_error, float(np.max(np.abs(ratios / true_ratios - 1.0)))
 
 
 def error_result(draw: Draw, message: str, wall_time_s: float = math.nan) -> DrawResult:

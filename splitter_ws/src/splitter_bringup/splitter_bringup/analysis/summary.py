@@ -7,10 +7,16 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from splitter_bringup.analysis.jump_metrics import gait_summary, jumping_summary
 from splitter_bringup.analysis.metrics import Metric, flight_summary
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
+from splitter_model.model import RobotModel
+from splitter_sim.core.robot_errors import RobotErrors
+
+LAST_TICK_S = 0.01 - 1e-9  # [s] one control period before the end (the last commanded)
 
 
 def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
@@ -28,7 +34,49 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
             **metrics,
         }
         metrics.pop("max_horizontal_speed_m_s", None)
+    if scenario.robot_errors.present and "estimate_gyro_bias_rad_s" in series.extras:
+        metrics.update(estimator_metrics(series, scenario))
     return metrics
+
+
+def estimator_errors(series: RunSeries, errors: RobotErrors) -> tuple[float, float]:
+    """(largest gyro bias error [rad/s], largest relative mass-ratio error [-]).
+
+    The flight estimator's estimate at the last tick the controllers acted on (a
+    graph's estimator also answers the final state, which its bag may or may not
+    hold) against the simulated robot's ``errors``; NaN without an estimator.
+    """
+    if "estimate_gyro_bias_rad_s" not in series.extras or len(series) == 0:
+        return math.nan, math.nan
+    acted = np.flatnonzero(series.extras["estimate_t_s"] <= series.t_s[-1] - LAST_TICK_S)
+    if acted.size == 0:
+        return math.nan, math.nan
+    k = int(acted[-1])
+    plant = errors.plant_model(RobotModel())
+    bias = np.asarray(series.extras["estimate_gyro_bias_rad_s"][k], dtype=float)
+    ratios = np.asarray(series.extras["estimate_mass_ratios"][k], dtype=float)
+    true_ratios = np.array([plant.limb_mass_y_kg, plant.limb_mass_z_kg]) / plant.body_mass_kg
+    return (
+        float(np.max(np.abs(bias - np.asarray(errors.gyro_bias_rad_s)))),
+        float(np.max(np.abs(ratios / true_ratios - 1.0))),
+    )
+
+
+def estimator_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
+    """The flight estimator's errors (:func:`estimator_errors`) as summary figures."""
+    bias_error, ratio_error = estimator_errors(series, scenario.robot_errors)
+    return {
+        "estimator_gyro_bias_error_rad_s": Metric(
+            bias_error,
+            "rad/s",
+            "largest |estimated - true| gyro bias component at the last control tick",
+        ),
+        "estimator_mass_ratio_error": Metric(
+            ratio_error,
+            "-",
+            "largest relative error of the estimated m_y/m_x, m_z/m_x at the last control tick",
+        ),
+    }
 
 
 def metric_values(series: RunSeries, scenario: Scenario) -> dict[str, float]:

@@ -199,6 +199,15 @@ def main(args: argparse.Namespace) -> int:
             plot_quaternion_map(
                 series, out / f"{variant}_quaternion.png", f"{base.name}: {variant}"
             )
+            if "estimate_t_s" in series.extras and scenario.robot_errors.present:
+                from splitter_bringup.figures.plots import plot_estimator
+
+                plot_estimator(
+                    series,
+                    scenario.robot_errors,
+                    out / f"{variant}_estimator.png",
+                    f"{base.name}: {variant}, flight estimator (dashed: the simulated robot)",
+                )
             if scenario.jumps or scenario.gravity_m_s2 > 0.0:
                 from splitter_bringup.figures.trajectory import plot_trajectory
 

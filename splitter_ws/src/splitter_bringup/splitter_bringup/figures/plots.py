@@ -25,7 +25,9 @@ from numpy.typing import NDArray
 
 from splitter_bringup.analysis.metrics import FindingResult
 from splitter_bringup.analysis.series import RunSeries
+from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix
+from splitter_sim.core.robot_errors import RobotErrors
 
 AXES = ("x", "y", "z")
 
@@ -282,5 +284,40 @@ def plot_gait(
             seen.add(label)
     axes[0].legend(loc="upper right", fontsize=8, ncols=len(seen))
     for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return save_figure(fig, path, title)
+
+
+def plot_estimator(series: RunSeries, errors: RobotErrors, path: Path, title: str = "") -> Path:
+    """The flight estimator against the simulated robot: gyro bias, mass ratios, rate error.
+
+    Estimates solid, the simulated robot's values dashed in the same colour.
+    """
+    extras = series.extras
+    t = extras["estimate_t_s"]
+    plant = errors.plant_model(RobotModel())
+    fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+    ax = axes[0]
+    for i, name in enumerate(AXES):
+        (line,) = ax.plot(t, 1e3 * extras["estimate_gyro_bias_rad_s"][:, i], label=f"$b_{name}$")
+        ax.axhline(1e3 * errors.gyro_bias_rad_s[i], ls="--", color=line.get_color(), alpha=0.7)
+    ax.set_ylabel("gyro bias [mrad/s]")
+    ax = axes[1]
+    true = (plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg)
+    for i, label in enumerate(("$m_y/m_x$", "$m_z/m_x$")):
+        (line,) = ax.plot(t, extras["estimate_mass_ratios"][:, i], label=label)
+        ax.axhline(true[i], ls="--", color=line.get_color(), alpha=0.7)
+    ax.set_ylabel("mass ratio [-]")
+    ax = axes[2]
+    w_true = np.stack(
+        [np.interp(t, series.t_s, series.angular_velocity_rad_s[:, i]) for i in range(3)], axis=1
+    )
+    rate_error = extras["estimate_rate_rad_s"] - w_true
+    for i, name in enumerate(AXES):
+        ax.plot(t, 1e3 * rate_error[:, i], label=f"$\\hat\\omega_{name} - \\omega_{name}$")
+    ax.set_ylabel("rate error [mrad/s]")
+    ax.set_xlabel("t [s]")
+    for ax in axes:
+        ax.legend(loc="best", fontsize="small")
         ax.grid(True, alpha=0.3)
     return save_figure(fig, path, title)

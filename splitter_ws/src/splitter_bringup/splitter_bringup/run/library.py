@@ -251,7 +251,6 @@ def estimate_extras(estimates: list[FlightEstimate]) -> dict[str, np.ndarray]:
         "estimate_t_s": np.array([e.t_ns / NS_PER_S for e in estimates]),
         "estimate_rate_rad_s": np.array([e.angular_velocity_rad_s for e in estimates]),
         "estimate_gyro_bias_rad_s": np.array([e.gyro_bias_rad_s for e in estimates]),
-        "estimate_gyro_bias_std_rad_s": np.array([e.bias_std_rad_s for e in estimates]),
         "estimate_mass_ratios": np.array([e.mass_ratios for e in estimates]),
         "estimate_masses_kg": np.array([e.masses_kg for e in estimates]),
         "estimate_inertia_kg_m2": np.array([e.principal_inertia_kg_m2 for e in estimates]),

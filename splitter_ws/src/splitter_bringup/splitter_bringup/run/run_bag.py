@@ -82,6 +82,10 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
         names.DIAGNOSTICS: diagnostics,
         names.CONTACT_WRENCH_A: jump,  # the same decoding: force [N], world
         names.CONTACT_WRENCH_B: jump,
+        names.ESTIMATE_IMU: imu,
+        names.ESTIMATE_INERTIA: vector,
+        names.ESTIMATE_MASSES: vector,
+        names.ESTIMATE_GYRO_BIAS: vector,
     }
 
 
