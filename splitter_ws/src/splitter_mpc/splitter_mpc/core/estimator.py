@@ -49,11 +49,6 @@ _POSITIVE = (1e-12, 1e3)
 class EstimatorConfig:
     """The estimator's noise model (the gyro's datasheet and how far the masses may be off)."""
 
-    enabled: bool = parameter_field(
-        True,
-        "estimate rate, gyro bias and mass ratios (off: the gyro's reading and the nominal "
-        "model are used as they are)",
-    )
     gyro_noise_rad_s: float = parameter_field(
         0.002, "gyro white noise, std per axis and reading [rad/s]", bounds=_POSITIVE
     )
