@@ -1,11 +1,9 @@
 """The flight estimator against a torque-free flight of a robot with other masses."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
-from splitter_model.model import RobotModel, principal_inertia
+from splitter_model.model import RobotModel, principal_inertia, with_masses
 from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator, model_with_ratios
 
 DT_S = 0.01  # [s] control tick
@@ -58,6 +56,13 @@ def _estimate(plant: RobotModel, bias, noise: float, duration_s: float = 8.0, se
     return estimate, rates[-1]
 
 
+def _scaled(scale) -> RobotModel:
+    """The nominal robot with m_x, m_y, m_z scaled."""
+    m = RobotModel()
+    nominal = np.array([m.body_mass_kg, m.limb_mass_y_kg, m.limb_mass_z_kg])
+    return with_masses(m, nominal * np.asarray(scale))
+
+
 def _true_ratios(plant: RobotModel) -> np.ndarray:
     return np.array(
         [plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg]
@@ -65,13 +70,7 @@ def _true_ratios(plant: RobotModel) -> np.ndarray:
 
 
 def test_gyro_bias_and_mass_ratios_are_found_in_a_morphing_tumble():
-    nominal = RobotModel()
-    plant = replace(
-        nominal,
-        body_mass_kg=nominal.body_mass_kg * 1.08,
-        limb_mass_y_kg=nominal.limb_mass_y_kg * 0.92,
-        limb_mass_z_kg=nominal.limb_mass_z_kg * 1.05,
-    )
+    plant = _scaled((1.08, 0.92, 1.05))
     bias = np.array([0.004, -0.005, 0.003])
     estimate, w_end = _estimate(plant, bias, noise=0.002)
     np.testing.assert_array_less(np.abs(estimate.gyro_bias_rad_s - bias), 0.001)
@@ -83,12 +82,7 @@ def test_gyro_bias_and_mass_ratios_are_found_in_a_morphing_tumble():
 
 def test_a_common_mass_scale_is_not_an_error_of_the_ratios():
     nominal = RobotModel()
-    heavier = replace(
-        nominal,
-        body_mass_kg=nominal.body_mass_kg * 1.1,
-        limb_mass_y_kg=nominal.limb_mass_y_kg * 1.1,
-        limb_mass_z_kg=nominal.limb_mass_z_kg * 1.1,
-    )
+    heavier = _scaled((1.1, 1.1, 1.1))
     estimate, _ = _estimate(heavier, np.zeros(3), noise=0.0005)
     np.testing.assert_allclose(estimate.mass_ratios, _true_ratios(nominal), rtol=0.01)
     # the inertia the controllers use: the true one over the unobservable scale
