@@ -279,3 +279,24 @@ def test_the_closed_loop_flies_the_draws_robot_errors() -> None:
     assert "estimate_masses_kg" not in noisy.extras
     # the true rate is recorded, not the gyro's reading: it starts where the scenario does
     assert np.array_equal(noisy.angular_velocity_rad_s[0], nominal.angular_velocity_rad_s[0])
+
+
+def test_a_perturbed_draws_scenario_file_carries_its_robot_errors(tmp_path) -> None:
+    import yaml
+
+    from splitter_bringup.analysis.campaign import robot_errors_for_draw, scenario_document
+    from splitter_bringup.scenario.definition import load_scenario
+
+    spec = PerturbationSpec(
+        mass_fraction=0.1, gyro_noise_rad_s=0.002, gyro_bias_rad_s=0.005, actuator_lag_s=0.05
+    )
+    draw = make_draw(3, 11, 1.0, 1.8, spec)
+    errors = robot_errors_for_draw(draw, spec)
+    base = load_scenario("spin_stabilization", "mpc")
+    path = tmp_path / "draw.yaml"
+    path.write_text(yaml.safe_dump(scenario_document(base, draw, 8.0, errors), sort_keys=False))
+    flown = load_scenario(path, "mpc")
+    assert flown.robot_errors == errors and errors.present
+    assert errors.mass_scale == draw.mass_scale and errors.noise_seed == draw.noise_seed
+    plain = yaml.safe_load(yaml.safe_dump(scenario_document(base, draw, 8.0)))
+    assert "robot_errors" not in plain

@@ -227,11 +227,17 @@ def plant_model(draw: Draw, nominal: RobotModel | None = None) -> RobotModel:
     return RobotErrors(mass_scale=draw.mass_scale).plant_model(nominal or RobotModel())
 
 
-def scenario_document(base: Scenario, draw: Draw, duration_s: float | None = None) -> dict:
+def scenario_document(
+    base: Scenario,
+    draw: Draw,
+    duration_s: float | None = None,
+    robot_errors: RobotErrors | None = None,
+) -> dict:
     """A scenario file (YAML mapping) of the draw: ``splitter run FILE`` flies it.
 
     The base's chosen variant merged in, as the only variant; the paper's findings
-    (comparisons between variants) dropped. The perturbations are not in it.
+    (comparisons between variants) dropped; the draw's ``robot_errors`` when it has any
+    (:func:`robot_errors_for_draw`), so the graph flies the same wrong robot.
     """
     doc: dict[str, Any] = copy.deepcopy(dict(base.raw))
     doc.pop("findings", None)
@@ -246,6 +252,10 @@ def scenario_document(base: Scenario, draw: Draw, duration_s: float | None = Non
     initial["orientation_euler_deg"] = list(draw.euler_deg)
     doc["initial"] = initial
     doc["variants"] = {base.variant: {}}
+    if robot_errors is not None and robot_errors.present:
+        doc["robot_errors"] = {
+            k: list(v) if isinstance(v, tuple) else v for k, v in asdict(robot_errors).items()
+        }
     return doc
 
 

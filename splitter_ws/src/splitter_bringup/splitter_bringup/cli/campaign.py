@@ -20,8 +20,8 @@ Writes to ``--out``:
 * ``campaign.json``: the figures, the definitions, and per draw its seed and the
   command that replays it alone;
 * ``success_vs_speed.png`` and ``outcome_directions.png`` (:mod:`.campaign_plots`);
-* ``draws/draw_NNNN.yaml`` for every failed draw of an unperturbed campaign
-  (``--yaml all`` for all draws): a scenario file, so that
+* ``draws/draw_NNNN.yaml`` for every failed draw (``--yaml all`` for all draws; with its
+  robot errors, not with ``--no-estimator``): a scenario file, so that
   ``splitter run draws/draw_NNNN.yaml --no-ros --out DIR`` flies it again with every
   figure of ``splitter run`` (the same flight as in the campaign).
 
@@ -54,6 +54,7 @@ from splitter_bringup.analysis.campaign import (
     draw_campaign,
     draw_result,
     make_draw,
+    robot_errors_for_draw,
     scenario_document,
     scenario_for_draw,
     summarize,
@@ -154,7 +155,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--yaml",
         choices=("failed", "all", "none"),
         default="failed",
-        help="draws to write as scenario files for 'splitter run' (unperturbed campaigns)",
+        help="draws to write as scenario files for 'splitter run' (with their robot errors)",
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 
@@ -268,10 +269,12 @@ def main(args: argparse.Namespace) -> int:
             "replay": replay_command(args, variant, out / f"replay_{draw.seed}", draw.seed),
         }
         wanted = args.yaml == "all" or (args.yaml == "failed" and not result.success)
-        if wanted and not spec.active and args.replay is None:
+        if wanted and spec.estimator and args.replay is None:
             path = yaml_dir / f"draw_{draw.index:04d}.yaml"
             path.parent.mkdir(exist_ok=True)
-            doc = scenario_document(base, draw, scenario.duration_s)
+            doc = scenario_document(
+                base, draw, scenario.duration_s, robot_errors_for_draw(draw, spec)
+            )
             path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
             entry["scenario_yaml"] = str(path)
             entry["run_command"] = shlex.join(
