@@ -96,7 +96,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=Path, default=None, help="output folder (runs/campaign/SCENARIO_seedS)"
     )
-    perturb = parser.add_argument_group("perturbations (drawn per draw; off by default)")
+    perturb = parser.add_argument_group(
+        "robot errors (drawn per draw, flown as the scenario's robot_errors; off by default)"
+    )
     perturb.add_argument(
         "--perturb-mass",
         type=float,
@@ -105,7 +107,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         metavar="FRACTION",
         help="scale the simulated m_x, m_y, m_z (so the inertia) each within 1 +- FRACTION; "
-        f"the MPC and the allocator keep the nominal model (flag alone: {DEFAULT_MASS_FRACTION})",
+        "the controllers know the nominal model and estimate the ratios (flag alone: "
+        f"{DEFAULT_MASS_FRACTION})",
     )
     perturb.add_argument(
         "--imu-noise",
@@ -114,7 +117,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         const=DEFAULT_GYRO_NOISE_RAD_S,
         default=0.0,
         metavar="SIGMA",
-        help="white noise on the gyro rate the MPC and allocator read, std per axis and "
+        help="white noise on the gyro's rate (/splitter/imu), std per axis and "
         f"reading [rad/s] (flag alone: {DEFAULT_GYRO_NOISE_RAD_S})",
     )
     perturb.add_argument(
@@ -140,9 +143,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     perturb.add_argument(
         "--no-estimator",
         action="store_true",
-        help="perturbed draws: the controllers read the gyro and the nominal model as they "
-        "are (default: they fly on the flight estimator of gyro bias and mass ratios, and "
-        "lead their commands through the actuators' lag)",
+        help="robot errors: the controllers read the gyro and the simulator's inertia as "
+        "they are and ignore the lag (default: they fly on the flight estimator of gyro "
+        "bias and mass ratios and take setpoints the lag ahead)",
     )
     parser.add_argument(
         "--replay",
