@@ -213,6 +213,8 @@ def test_a_perturbed_campaign_on_an_existing_scheduler_replays_a_draw_alone(tmp_
 
     from distributed import LocalCluster
 
+    from splitter_bringup.scenario.definition import load_scenario
+
     out = tmp_path / "campaign"
     args = ["campaign", "spin_stabilization", "--draws", "2", "--seed", "4", "--duration", "0.5"]
     args += ["--perturb-mass", "--imu-noise", "--imu-bias", "--actuator-lag", "--no-plots"]
@@ -229,7 +231,8 @@ def test_a_perturbed_campaign_on_an_existing_scheduler_replays_a_draw_alone(tmp_
     assert document["perturbation"]["mass_fraction"] == 0.1
     rows = list(csv.DictReader((out / "draws.csv").open()))
     assert {float(rows[0][f"mass_scale_{a}"]) for a in "xyz"} != {1.0}
-    assert not (out / "draws").exists()  # a scenario file cannot carry the perturbations
+    for path in (out / "draws").glob("*.yaml"):  # failed draws, with their robot errors
+        assert load_scenario(path).robot_errors.present
     # the replay command of draw 1 flies it alone, the same flight
     words = shlex.split(document["per_draw"][1]["replay"])
     assert words[:2] == ["splitter", "campaign"] and "--imu-noise" in words
