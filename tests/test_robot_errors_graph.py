@@ -57,7 +57,7 @@ def test_the_controllers_read_estimates_not_ground_truth(node_name: str) -> None
     topics = _subscriptions(node_name)
     assert not topics & set(GROUND_TRUTH), f"{node_name} reads ground truth: {topics}"
     if node_name == ESTIMATOR_NODE:
-        assert topics - {names.CLOCK} == {names.IMU, names.JOINT_STATES}  # gyro, encoders
+        assert topics - {names.CLOCK} == {names.IMU, names.JOINT_STATES}  # gyro, joint sensors
     else:
         assert {names.ESTIMATE_IMU, names.ESTIMATE_INERTIA} <= topics
 
@@ -104,15 +104,11 @@ def test_the_graph_flies_the_wrong_robot_as_the_library_loop(
     radii = radii_from_joint_positions(nominal, library.joint_position[0])
     np.testing.assert_allclose(used[0], principal_inertia(nominal, radii), rtol=1e-12)
     np.testing.assert_allclose(truth[0], principal_inertia(plant, radii), rtol=1e-9)
-    # at the end: the estimated model keeps the nominal m_x (a common scale of the
-    # masses is unobservable), so its inertia is the true one over m_x's error, up to
-    # the ratios' residual error (the limb-to-body ratio is barely observable: README)
+    # at the end: the joint efforts have weighed the masses (the common scale too), so
+    # the controllers' inertia is the true one (within 1 %), and the masses the robot's
     end = max(used)
-    scale = plant.body_mass_kg / nominal.body_mass_kg
-    np.testing.assert_allclose(used[end] * scale, truth[end], rtol=0.05)
-    assert not np.allclose(used[end], truth[end], rtol=0.03)
-    np.testing.assert_allclose(masses[end][0], nominal.body_mass_kg)
-    # the ratios the estimator found (m_y/m_x, m_z/m_x) against the simulated robot's
-    ratios = masses[end][1:] / masses[end][0]
-    true_ratios = np.array([plant.limb_mass_y_kg, plant.limb_mass_z_kg]) / plant.body_mass_kg
-    np.testing.assert_allclose(ratios, true_ratios, rtol=0.05)
+    np.testing.assert_allclose(used[end], truth[end], rtol=0.01)
+    true_masses = np.array([plant.body_mass_kg, plant.limb_mass_y_kg, plant.limb_mass_z_kg])
+    np.testing.assert_allclose(masses[end], true_masses, rtol=0.02)
+    nominal_masses = [nominal.body_mass_kg, nominal.limb_mass_y_kg, nominal.limb_mass_z_kg]
+    assert not np.allclose(true_masses, nominal_masses, rtol=0.04)

@@ -21,6 +21,7 @@ ERRORS = RobotErrors(
     gyro_noise_rad_s=0.002,
     gyro_bias_rad_s=(0.004, -0.005, 0.003),
     actuator_lag_s=0.05,
+    joint_effort_noise=0.05,
     noise_seed=7,
 )
 
@@ -52,6 +53,10 @@ def test_the_robot_errors_scenario_loads_as_spin_stabilization_with_errors() -> 
         ("robot_errors: {gyro_noise_rad_s: -1}", r"robot_errors\.gyro_noise_rad_s: must be"),
         ("robot_errors: {actuator_lag_s: abc}", r"robot_errors\.actuator_lag_s: a number"),
         ("robot_errors: {noise_seed: 1.5}", r"robot_errors\.noise_seed: an integer"),
+        (
+            "robot_errors: {joint_effort_noise: -0.1}",
+            r"robot_errors\.joint_effort_noise: must be",
+        ),
         ("robot_errors: {gyro_drift: 1}", r"robot_errors\.gyro_drift: unknown field"),
     ],
 )

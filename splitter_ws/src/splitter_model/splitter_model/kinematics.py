@@ -63,6 +63,44 @@ def limb_forward_kinematics(
     return p_u * u + p_plane * v_rot
 
 
+def limb_jacobian(
+    model: RobotModel, limb_index: int, joint_angles_rad: ArrayLike
+) -> NDArray[np.float64]:
+    """d(tip position)/d(hip_abduction, hip_pitch, knee) [m/rad], base frame, columns (3, 3).
+
+    The analytic derivative of :func:`limb_forward_kinematics`: the tip's velocity
+    is ``J qd`` and, the links being massless, the joint torques that hold a force
+    ``F`` [N] on the tip's lumped mass are ``J^T F`` [N m] (virtual work).
+    """
+    q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    p_u = l1 * math.cos(q2) + l2 * math.cos(q2 + q3)
+    p_plane = l1 * math.sin(q2) + l2 * math.sin(q2 + q3)
+    u, v, w = limb_frame(limb_index)
+    v_rot = math.cos(q1) * v + math.sin(q1) * w
+    d_v_rot = -math.sin(q1) * v + math.cos(q1) * w
+    d_knee = -l2 * math.sin(q2 + q3) * u + l2 * math.cos(q2 + q3) * v_rot
+    d_pitch = -p_plane * u + p_u * v_rot
+    return np.stack([p_plane * d_v_rot, d_pitch, d_knee], axis=1)
+
+
+def limb_joint_torques(
+    model: RobotModel, joint_positions: ArrayLike, tip_forces_n: ArrayLike
+) -> NDArray[np.float64]:
+    """The 24 limb joint torques [N m] (``JOINT_NAMES`` order) holding ``tip_forces_n``.
+
+    ``tip_forces_n``: (8, 3) the force each limb exerts on its lumped mass, base frame [N].
+    """
+    q = np.asarray(joint_positions, dtype=float)
+    forces = np.asarray(tip_forces_n, dtype=float).reshape(N_LIMBS, 3)
+    return np.concatenate(
+        [
+            limb_jacobian(model, limb, q[limb_joints(limb)]).T @ forces[limb]
+            for limb in range(N_LIMBS)
+        ]
+    )
+
+
 def limb_inverse_kinematics(
     model: RobotModel, limb_index: int, tip_position_m: ArrayLike
 ) -> NDArray[np.float64]:

@@ -7,10 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from splitter_model.joints import limb_joints
 from splitter_model.kinematics import (
     joint_positions_from_radii,
     limb_forward_kinematics,
     limb_inverse_kinematics,
+    limb_jacobian,
+    limb_joint_torques,
     limb_offsets_from_joint_positions,
     radii_from_joint_positions,
 )
@@ -100,6 +103,45 @@ def test_radial_joint_positions_reproduce_radii_and_lumped_positions() -> None:
     np.testing.assert_allclose(
         lumped_mass_positions(radii, offsets), lumped_mass_positions(radii), atol=1e-12
     )
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    limb=st.integers(0, 7),
+    q1=st.floats(-1.4, 1.4),
+    q2=st.floats(-1.2, 1.2),
+    q3=st.floats(0.2, 2.5),
+)
+def test_limb_jacobian_is_the_derivative_of_the_forward_kinematics(
+    limb: int, q1: float, q2: float, q3: float
+) -> None:
+    q, step = np.array([q1, q2, q3]), 1e-6
+    numeric = np.stack(
+        [
+            (
+                limb_forward_kinematics(MODEL, limb, q + step * e)
+                - limb_forward_kinematics(MODEL, limb, q - step * e)
+            )
+            / (2.0 * step)
+            for e in np.eye(3)
+        ],
+        axis=1,
+    )
+    np.testing.assert_allclose(limb_jacobian(MODEL, limb, q), numeric, atol=1e-8)
+
+
+def test_joint_torques_do_the_work_of_the_tip_force() -> None:
+    """Virtual work: tau . qd = F . v for any joint rates (massless links)."""
+    rng = np.random.default_rng(3)
+    q = joint_positions_from_radii(MODEL, (2.0, 0.3, 0.2)) + rng.normal(0.0, 0.1, 25)
+    forces = rng.normal(0.0, 2.0, (8, 3))
+    qd = rng.normal(0.0, 1.0, 25)
+    torques = limb_joint_torques(MODEL, q, forces)
+    tip_power = sum(
+        forces[limb] @ limb_jacobian(MODEL, limb, q[limb_joints(limb)]) @ qd[limb_joints(limb)]
+        for limb in range(8)
+    )
+    assert float(torques @ qd[:24]) == pytest.approx(tip_power, rel=1e-12)
 
 
 def test_unreachable_tip_is_an_error() -> None:

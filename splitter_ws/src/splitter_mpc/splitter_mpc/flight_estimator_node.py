@@ -26,7 +26,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
@@ -34,7 +33,7 @@ from sensor_msgs.msg import Imu, JointState
 
 from splitter_model.model import RobotModel
 from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
-from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample
+from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample, JointReading
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MessageValidationError,
@@ -83,8 +82,9 @@ def _read_gyro(msg: Imu) -> GyroSample:
     return GyroSample(sample.angular_velocity_rad_s, sample.orientation_wxyz)
 
 
-def _read_joints(msg: JointState) -> np.ndarray:
-    return joint_state_from_msg(msg).position
+def _read_joints(msg: JointState) -> JointReading:
+    sample = joint_state_from_msg(msg)
+    return JointReading(sample.position, sample.velocity, sample.effort)
 
 
 READERS = {names.IMU: (Imu, _read_gyro), names.JOINT_STATES: (JointState, _read_joints)}

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from splitter_model.model import RobotModel, principal_inertia, with_masses
-from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator, model_with_ratios
+from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimator, model_with_log_masses
 
 DT_S = 0.01  # [s] control tick
 SUBSTEPS = 20  # truth integrated at 0.5 ms
@@ -81,6 +81,7 @@ def test_gyro_bias_and_mass_ratios_are_found_in_a_morphing_tumble():
 
 
 def test_a_common_mass_scale_is_not_an_error_of_the_ratios():
+    """From the gyro alone (no joint efforts) the common scale stays at its prior."""
     nominal = RobotModel()
     heavier = _scaled((1.1, 1.1, 1.1))
     estimate, _ = _estimate(heavier, np.zeros(3), noise=0.0005)
@@ -90,9 +91,9 @@ def test_a_common_mass_scale_is_not_an_error_of_the_ratios():
     np.testing.assert_allclose(ratio, 1.0 / 1.1, rtol=0.01)
 
 
-def test_ratios_scale_only_the_limb_masses():
+def test_log_masses_scale_each_mass():
     nominal = RobotModel()
-    model = model_with_ratios(nominal, (np.log(1.2), np.log(0.9)))
+    model = model_with_log_masses(nominal, (0.0, np.log(1.2), np.log(0.9)))
     assert model.body_mass_kg == nominal.body_mass_kg
     assert model.limb_mass_y_kg == pytest.approx(1.2 * nominal.limb_mass_y_kg)
     assert model.limb_mass_z_kg == pytest.approx(0.9 * nominal.limb_mass_z_kg)
@@ -105,3 +106,31 @@ def test_update_before_start_and_backwards_time_are_refused():
     estimator.start(10, np.zeros(3), _radii(0.0), (1.0, 0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="went back"):
         estimator.update(5, np.zeros(3), _radii(0.0))
+
+
+def test_effort_model_of_a_steady_spin_is_the_centripetal_load() -> None:
+    """Rigid spin w about y: the tether holds a hemi on its circle, T = m_hemi r_x w^2;
+    the y limbs, spinning in their own axis' direction, feel only the x pull."""
+    from splitter_model.joints import TETHER_INDEX, limb_joints, limbs_along
+    from splitter_model.kinematics import joint_positions_from_radii, limb_jacobian
+    from splitter_mpc.core.estimator import (
+        JointReading,
+        effort_coefficients,
+        mass_motion,
+        nominal_masses,
+    )
+
+    model, w, radii = RobotModel(), 0.9, (2.1, 0.3, 0.22)
+    motion = mass_motion(model, JointReading(joint_positions_from_radii(model, radii)))
+    coefficients = effort_coefficients(motion, np.zeros((10, 3)), (0.0, w, 0.0), np.zeros(3))
+    masses = nominal_masses(model)
+    effort = coefficients @ masses
+    hemi = masses[0] + 2.0 * masses[1] + 2.0 * masses[2]
+    assert effort[TETHER_INDEX] == pytest.approx(hemi * radii[0] * w**2, rel=1e-12)
+    for limb in limbs_along("y"):
+        q = joint_positions_from_radii(model, radii)[limb_joints(limb)]
+        x = radii[0] if limb < 4 else -radii[0]
+        force = masses[1] * np.array([-(w**2) * x, 0.0, 0.0])
+        np.testing.assert_allclose(
+            effort[limb_joints(limb)], limb_jacobian(model, limb, q).T @ force, atol=1e-12
+        )

@@ -119,8 +119,12 @@ def state_messages(
     state: SimState,
     gyro_rad_s: ArrayLike | None = None,
     gyro_noise_rad_s: float = 0.0,
+    joint_effort: ArrayLike | None = None,
 ) -> list[tuple[str, object]]:
     """(topic, message) of every state stream of one step, stamped ``state.t_ns``.
+
+    ``/splitter/joint_states`` carries the encoders (exact) and the effort sensors'
+    reading ``joint_effort`` (default: the true efforts).
 
     ``/splitter/imu`` carries the rate gyro's reading ``gyro_rad_s`` (default: the
     true rate), its noise variance ``gyro_noise_rad_s**2`` on the diagonal of
@@ -133,7 +137,15 @@ def state_messages(
     acceleration = state.linear_acceleration_m_s2
     return [
         (names.CLOCK, cv.clock_to_msg(t)),
-        (names.JOINT_STATES, cv.joint_state_to_msg(t, state.joint_position, state.joint_velocity)),
+        (
+            names.JOINT_STATES,
+            cv.joint_state_to_msg(
+                t,
+                state.joint_position,
+                state.joint_velocity,
+                state.joint_effort if joint_effort is None else joint_effort,
+            ),
+        ),
         (names.INERTIA, inertia),
         (names.ODOM, cv.odom_to_msg(t, state.position_m, q, state.velocity_m_s, w)),
         *(

@@ -304,7 +304,10 @@ class SimulatorNode(Node):
             if state is None:
                 raise cv.MessageValidationError("non-finite simulator state")
             msgs = state_messages(
-                state, self.tick.gyro_reading(state), self.tick.errors.gyro_noise_rad_s
+                state,
+                self.tick.gyro_reading(state),
+                self.tick.errors.gyro_noise_rad_s,
+                self.tick.joint_effort_reading(state),
             )
         except cv.MessageValidationError as exc:
             self.tick.unpublished += state is not None

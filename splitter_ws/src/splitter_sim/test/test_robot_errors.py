@@ -34,6 +34,8 @@ CONTROL_NS = 10_000_000  # [ns]
         ({"gyro_bias_rad_s": "abc"}, "gyro_bias_rad_s"),
         ({"actuator_lag_s": -0.01}, "actuator_lag_s"),
         ({"actuator_lag_s": math.nan}, "actuator_lag_s"),
+        ({"joint_effort_noise": -0.1}, "joint_effort_noise"),
+        ({"joint_effort_noise": math.nan}, "joint_effort_noise"),
         ({"noise_seed": -1}, "noise_seed"),
         ({"noise_seed": 1.5}, "noise_seed"),
         ({"noise_seed": True}, "noise_seed"),
@@ -142,3 +144,18 @@ def test_the_tick_reads_the_gyro_once_per_simulated_time() -> None:
     nominal = _tick(RobotErrors())
     s = nominal.state()
     np.testing.assert_array_equal(nominal.gyro_reading(s), s.angular_velocity_rad_s)
+
+
+def test_the_effort_sensors_read_the_true_efforts_with_their_noise() -> None:
+    tick = _tick(RobotErrors(joint_effort_noise=0.05, gyro_noise_rad_s=0.01, noise_seed=4))
+    state = tick.state()
+    reading = tick.joint_effort_reading(state)
+    np.testing.assert_array_equal(tick.joint_effort_reading(state), reading)  # once per time
+    noise = reading - state.joint_effort
+    assert 0.02 < float(np.std(noise)) < 0.09
+    # the gyro's draws do not depend on the effort sensors (their own generator)
+    alone = _tick(RobotErrors(gyro_noise_rad_s=0.01, noise_seed=4))
+    np.testing.assert_array_equal(alone.gyro_reading(alone.state()), tick.gyro_reading(state))
+    nominal = _tick(RobotErrors())
+    s = nominal.state()
+    np.testing.assert_array_equal(nominal.joint_effort_reading(s), s.joint_effort)

@@ -107,6 +107,44 @@ def test_reel_power_is_tension_times_reel_in_speed() -> None:
     assert checked > 100
 
 
+def test_joint_efforts_do_the_actuator_work() -> None:
+    """Limb torques and tether tension, against the actuator power (a second code path):
+    sum tau qd (limbs) - T d(tether)/dt = P, while limbs and tether all move."""
+    states, _ = _morph(_flight())
+    moving = 0
+    for s in states[1:]:
+        qd, effort = s.joint_velocity, s.joint_effort
+        power = float(effort[:TETHER_INDEX] @ qd[:TETHER_INDEX]) - effort[TETHER_INDEX] * float(
+            qd[TETHER_INDEX]
+        )
+        assert power == pytest.approx(s.actuator_power_w, abs=1e-9 * 100.0)
+        assert effort[TETHER_INDEX] == s.tether_tension_n
+        moving += abs(s.actuator_power_w) > 1.0
+    assert moving > 50
+
+
+def test_steady_spin_efforts_hold_the_masses_on_their_circles() -> None:
+    """A rigid spin w about y: the tether holds a hemi's 9 kg on its circle,
+    T = (m_x + 2 m_y + 2 m_z) r_x w^2; the z limbs' joints hold their masses, so
+    J^T of the centripetal force is their torque (closed form)."""
+    from splitter_model.joints import limb_joints, limbs_along
+    from splitter_model.kinematics import limb_jacobian
+
+    w, radii = 1.1, (2.0, 0.25, 0.3)  # [rad/s], [m]
+    s = _flight(w0=(0.0, w, 0.0), radii=radii).state()
+    hemi = MODEL.body_mass_kg + 2.0 * MODEL.limb_mass_y_kg + 2.0 * MODEL.limb_mass_z_kg
+    assert s.joint_effort[TETHER_INDEX] == pytest.approx(hemi * radii[0] * w**2, rel=1e-9)
+    for limb in limbs_along("z"):
+        q = s.joint_position[limb_joints(limb)]
+        sign = 1.0 if limb < 4 else -1.0
+        up = 1.0 if limb % 4 == 2 else -1.0
+        tip = np.array([sign * radii[0], 0.0, up * radii[2]])
+        force = MODEL.limb_mass_z_kg * (-(w**2) * np.array([tip[0], 0.0, tip[2]]))
+        expected = limb_jacobian(MODEL, limb, q).T @ force
+        np.testing.assert_allclose(s.joint_effort[limb_joints(limb)], expected, atol=1e-9)
+        assert np.abs(expected).max() > 0.1
+
+
 def test_flipped_gyroscopic_sign_fails_the_momentum_check() -> None:
     """The paper's sign error: the energy balance cannot see it, world H does."""
     states, _ = _morph(_flight(gyroscopic_sign=1.0))

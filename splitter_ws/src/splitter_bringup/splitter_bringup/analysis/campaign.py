@@ -78,6 +78,9 @@ ALIGNMENT_MIN = 0.99  # [-] |w_y| / |w| at the end
 TAIL_WINDOW_S = 1.0  # [s] the end of the run the failure mode is read from
 DOMINANT_FRACTION = 0.8  # [-] mean |w_k| / |w| over the tail for axis k to dominate
 DIVERGENCE_FACTOR = 10.0  # [-] |w| above this times |w(0)|: diverged
+# [N m] limbs, [N] tether: joint effort sensor noise of a draw with robot errors (~5 % of
+# the limbs' ~1 N m centripetal load in a 1 rad/s spin)
+DEFAULT_JOINT_EFFORT_NOISE = 0.05
 
 SUCCESS = "success"
 FAILURE_MODES = (
@@ -102,6 +105,9 @@ class PerturbationSpec:
     gyro_noise_rad_s: float = 0.0  # [rad/s] white noise std per axis and reading
     gyro_bias_rad_s: float = 0.0  # [rad/s] bias drawn uniform in +- this per axis
     actuator_lag_s: float = 0.0  # [s] first-order lag time constant of the joint commands
+    # [N m] limbs, [N] tether: the joint effort sensors' noise, std per reading, in every
+    # draw with robot errors (a sensor, not a perturbation: it does not make one)
+    joint_effort_noise: float = DEFAULT_JOINT_EFFORT_NOISE
     # the controllers fly on the flight estimator (splitter_mpc.core.estimator) and lead
     # their commands through the actuators' lag; False: they read the sensors as they are
     estimator: bool = True
@@ -116,7 +122,7 @@ class PerturbationSpec:
     @property
     def active(self) -> bool:
         """True when anything is perturbed."""
-        return any(v > 0.0 for v in self.as_dict().values())
+        return any(v > 0.0 for k, v in self.as_dict().items() if k != "joint_effort_noise")
 
     def as_dict(self) -> dict[str, float]:
         """Each perturbation by its field name."""
@@ -218,6 +224,7 @@ def robot_errors_for_draw(draw: Draw, spec: PerturbationSpec | None = None) -> R
         gyro_noise_rad_s=p.gyro_noise_rad_s,
         gyro_bias_rad_s=draw.gyro_bias_rad_s,
         actuator_lag_s=p.actuator_lag_s,
+        joint_effort_noise=p.joint_effort_noise,
         noise_seed=draw.noise_seed,
     )
 

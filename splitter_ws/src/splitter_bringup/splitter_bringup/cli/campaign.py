@@ -46,6 +46,7 @@ from typing import Any
 import yaml
 
 from splitter_bringup.analysis.campaign import (
+    DEFAULT_JOINT_EFFORT_NOISE,
     W_MAX_RAD_S,
     W_MIN_RAD_S,
     Draw,
@@ -107,7 +108,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         metavar="FRACTION",
         help="scale the simulated m_x, m_y, m_z (so the inertia) each within 1 +- FRACTION; "
-        "the controllers know the nominal model and estimate the ratios (flag alone: "
+        "the controllers know the nominal model and estimate the masses (flag alone: "
         f"{DEFAULT_MASS_FRACTION})",
     )
     perturb.add_argument(
@@ -141,11 +142,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"(flag alone: {DEFAULT_ACTUATOR_LAG_S})",
     )
     perturb.add_argument(
+        "--effort-noise",
+        type=float,
+        default=DEFAULT_JOINT_EFFORT_NOISE,
+        metavar="SIGMA",
+        help="with robot errors: noise of the joint effort sensors, std per joint and reading "
+        f"[N m] (limbs), [N] (tether) (default: {DEFAULT_JOINT_EFFORT_NOISE})",
+    )
+    perturb.add_argument(
         "--no-estimator",
         action="store_true",
         help="robot errors: the controllers read the gyro and the simulator's inertia as "
         "they are and ignore the lag (default: they fly on the flight estimator of gyro "
-        "bias and mass ratios and take setpoints the lag ahead)",
+        "bias and masses and take setpoints the lag ahead)",
     )
     parser.add_argument(
         "--replay",
@@ -169,6 +178,7 @@ def _spec(args: argparse.Namespace) -> PerturbationSpec:
         gyro_noise_rad_s=args.imu_noise,
         gyro_bias_rad_s=args.imu_bias,
         actuator_lag_s=args.actuator_lag,
+        joint_effort_noise=args.effort_noise,
         estimator=not args.no_estimator,
     )
 
@@ -197,6 +207,8 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
     ):
         if value > 0.0:
             words += [flag, repr(value)]
+    if args.effort_noise != DEFAULT_JOINT_EFFORT_NOISE:
+        words += ["--effort-noise", repr(args.effort_noise)]
     if args.no_estimator:
         words.append("--no-estimator")
     words += ["--out", str(out)]

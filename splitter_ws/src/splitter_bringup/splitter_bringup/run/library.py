@@ -46,7 +46,7 @@ from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
-from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample
+from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample, JointReading
 from splitter_mpc.core.gait_tick import BodyState, GaitTick, gait_settings_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.mpc_tick import MpcTick, MpcTickSettings
@@ -177,13 +177,15 @@ def run_closed_loop(
         state = sim.state()
         t = state.t_ns
         gyro = sim.gyro_reading(state)  # the rate of the imu message (one per step)
+        effort = sim.joint_effort_reading(state)  # the joint_states' efforts (one per step)
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
             rate, attitude, inertia = gyro, q_measured, state.principal_inertia_kg_m2
             masses = None
             if flight is not None:  # the controllers' imu and inertia: the estimator's
-                estimate = flight.on_sensors(t, GyroSample(gyro, q_measured), state.joint_position)
+                joints = JointReading(state.joint_position, state.joint_velocity, effort)
+                estimate = flight.on_sensors(t, GyroSample(gyro, q_measured), joints)
                 estimates.append(estimate)
                 rate = estimate.angular_velocity_rad_s
                 attitude = received_quaternion(estimate.orientation_wxyz, hops=1)

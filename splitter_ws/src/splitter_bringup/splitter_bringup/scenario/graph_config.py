@@ -124,6 +124,7 @@ def robot_error_parameters(scenario: Scenario) -> dict:
         "gyro_noise_rad_s": float(e.gyro_noise_rad_s),
         "gyro_bias_rad_s": _floats(e.gyro_bias_rad_s),
         "actuator_lag_s": float(e.actuator_lag_s),
+        "joint_effort_noise": float(e.joint_effort_noise),
         "noise_seed": int(e.noise_seed),
     }
 

@@ -7,8 +7,9 @@ with the same values, in the same order, so both estimate the same numbers.
 * Inputs of tick ``t`` (a multiple of the control period): the rate gyro (the
   ``/splitter/imu`` message: its angular velocity; the orientation of the first one
   is the attitude the robot knows at release, from then on integrated) and the joint
-  encoders (``/splitter/joint_states``: positions, turned into the radii with the
-  nominal model's kinematics). Joined by a
+  sensors (``/splitter/joint_states``: positions, turned into the radii with the
+  nominal model's kinematics; velocities and efforts, which weigh the masses).
+  Joined by a
   :class:`~splitter_mpc.core.tick_inputs.TickAssembler`.
 * The answer of tick ``t``: the :class:`~splitter_mpc.core.estimator.FlightEstimate`
   stamped ``t``: rate, attitude, inertia, masses, gyro bias and their covariance.
@@ -19,11 +20,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from splitter_model.kinematics import radii_from_joint_positions
 from splitter_model.model import RobotModel
-from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate, FlightEstimator
+from splitter_mpc.core.estimator import (
+    EstimatorConfig,
+    FlightEstimate,
+    FlightEstimator,
+    JointReading,
+)
 from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import StampGate
@@ -55,7 +61,7 @@ class EstimatorTick:
         self.last: FlightEstimate | None = None
 
     def add(self, topic: str, t_ns: int, value: object | None) -> FlightEstimate | None:
-        """A gyro sample or the joint positions (None: rejected) stamped ``t_ns``.
+        """A gyro sample or a joint reading (None: rejected) stamped ``t_ns``.
 
         Returns the estimate of the tick it completes, else None.
         """
@@ -71,12 +77,12 @@ class EstimatorTick:
             return None
         return self.on_sensors(t, gyro, joints)  # type: ignore[arg-type]
 
-    def on_sensors(self, t_ns: int, gyro: GyroSample, joint_positions: ArrayLike) -> FlightEstimate:
-        """Tick ``t_ns`` from plain values: the estimate after this gyro and these encoders."""
-        radii = radii_from_joint_positions(self.model, joint_positions)
+    def on_sensors(self, t_ns: int, gyro: GyroSample, joints: JointReading) -> FlightEstimate:
+        """Tick ``t_ns`` from plain values: the estimate after this gyro and joint reading."""
+        radii = radii_from_joint_positions(self.model, joints.position)
         if not self.estimator.started:
             self.estimator.start(t_ns, gyro.angular_velocity_rad_s, radii, gyro.orientation_wxyz)
-        self.last = self.estimator.update(t_ns, gyro.angular_velocity_rad_s, radii)
+        self.last = self.estimator.update(t_ns, gyro.angular_velocity_rad_s, radii, joints=joints)
         return self.last
 
     def estimated_model(self) -> RobotModel:

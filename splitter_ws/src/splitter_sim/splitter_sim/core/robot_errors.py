@@ -13,6 +13,11 @@ as it really is. :class:`RobotErrors` says how that robot is wrong:
 * ``actuator_lag_s``: every joint and tether command reaches the servos through a
   first-order lag of this time constant
   (:class:`splitter_model.actuators.CommandLag`, the one actuator-lag model).
+* ``joint_effort_noise``: the joint effort sensors of ``/splitter/joint_states``
+  (limb torques [N m], the reel's tether tension [N]) read the true effort plus
+  white Gaussian noise of this standard deviation per joint and reading
+  (:class:`EffortSensor`, drawn from its own generator so the gyro's draws do not
+  depend on it).
 
 The defaults are the nominal robot: no error, and nothing drawn from a random
 generator, so a run without errors is bit-identical to one before they existed.
@@ -60,12 +65,18 @@ class RobotErrors:
         "(0: none) [s]",
         bounds=(0.0, 10.0),
     )
+    joint_effort_noise: float = parameter_field(
+        0.0,
+        "robot errors: white noise of each joint effort reading, std [N m] (limbs) and "
+        "[N] (tether tension)",
+        bounds=(0.0, 100.0),
+    )
     noise_seed: int = parameter_field(
-        0, "robot errors: seed of the gyro noise [-]", bounds=(0, SEED_MAX)
+        0, "robot errors: seed of the gyro and effort noise [-]", bounds=(0, SEED_MAX)
     )
 
     def __post_init__(self) -> None:
-        for name in ("gyro_noise_rad_s", "actuator_lag_s"):
+        for name in ("gyro_noise_rad_s", "actuator_lag_s", "joint_effort_noise"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"{name}: a number, got {value!r}")
@@ -91,6 +102,7 @@ class RobotErrors:
             or self.gyro_noise_rad_s > 0.0
             or any(self.gyro_bias_rad_s)
             or self.actuator_lag_s > 0.0
+            or self.joint_effort_noise > 0.0
         )
 
     def plant_model(self, nominal: RobotModel) -> RobotModel:
@@ -138,3 +150,22 @@ class Gyro:
         if self.noise_rad_s > 0.0:
             w = w + self._rng.normal(0.0, self.noise_rad_s, 3)
         return w
+
+
+class EffortSensor:
+    """The joint effort sensors of :class:`RobotErrors`: true effort + white noise, per reading.
+
+    One reading draws one normal per joint from ``default_rng([noise_seed, 1])``; without
+    noise nothing is drawn and the reading is the true effort itself.
+    """
+
+    def __init__(self, errors: RobotErrors) -> None:
+        self.noise = errors.joint_effort_noise  # [N m] / [N] std per joint and reading
+        self._rng = np.random.default_rng([errors.noise_seed, 1])
+
+    def read(self, effort: ArrayLike) -> NDArray[np.float64]:
+        """The reading of the true joint efforts ``effort`` (limbs [N m], tether [N])."""
+        e = np.asarray(effort, dtype=float)
+        if self.noise > 0.0:
+            e = e + self._rng.normal(0.0, self.noise, e.shape)
+        return e

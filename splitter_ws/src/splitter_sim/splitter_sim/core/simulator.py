@@ -41,7 +41,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, actuator_limits
-from splitter_model.kinematics import joint_positions_from_radii
+from splitter_model.joints import LIMB_JOINT_SLICE, N_LIMBS
+from splitter_model.kinematics import joint_positions_from_radii, limb_joint_torques
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
@@ -263,6 +264,7 @@ class SimState:
     principal_inertia_kg_m2: NDArray[np.float64]  # (3,) diagonal of the tensor [kg m^2]
     joint_position: NDArray[np.float64]  # (25,) [rad] / tether [m]
     joint_velocity: NDArray[np.float64]  # (25,) [rad/s] / [m/s]
+    joint_effort: NDArray[np.float64]  # (25,) limb torques [N m] (J^T F) / tether tension [N]
     radii_m: NDArray[np.float64]  # (3,) effective r_x, r_y, r_z [m]
     mass_positions_world_m: NDArray[np.float64]  # (10, 3) [m]
     hemi_acceleration_g: NDArray[np.float64]  # (2,) specific-force magnitude per hemi body [G]
@@ -811,6 +813,7 @@ class Simulator:
         # F = sum (m a - m g - f_ext); the tether tension is T = -F . x_tether.
         acc_body = []
         pull = [0.0, 0.0, 0.0]
+        tip_forces = np.zeros((N_LIMBS, 3))  # [N] each limb on its lumped mass, world
         for i in range(10):
             r = (shape.rx[i], shape.ry[i], shape.rz[i])
             dr = (shape.vx[i], shape.vy[i], shape.vz[i])
@@ -822,6 +825,14 @@ class Simulator:
             acc = _add(a_com, _rotate(rot, rel))
             if i in HEMI_BODY_INDEX:
                 acc_body.append(acc)
+            else:  # mass index i = limb + 1 + limb // 4 (shape.limb_constants)
+                f = contact.get(i, _ZERO3)
+                m = masses[i]
+                tip_forces[i - 1 - i // 5] = (
+                    m * acc[0] - f[0],
+                    m * acc[1] - f[1],
+                    m * (acc[2] + g) - f[2],
+                )
             if i < 5:
                 f = contact.get(i, _ZERO3)
                 m = masses[i]
@@ -834,6 +845,9 @@ class Simulator:
             for a in acc_body
         ]
         R = np.array(rot).reshape(3, 3)
+        effort = np.empty(N_JOINTS)
+        effort[LIMB_JOINT_SLICE] = limb_joint_torques(self.model, self._q, tip_forces @ R)
+        effort[TETHER_INDEX] = tension
         position = np.array(s[0:3])
         world_positions = position + shape.positions() @ R.T
         contact_hemi = np.zeros((2, 3))
@@ -867,6 +881,7 @@ class Simulator:
             principal_inertia_kg_m2=_readonly(np.diag(inertia).copy()),
             joint_position=_readonly(self._q),
             joint_velocity=_readonly(self._qd),
+            joint_effort=_readonly(effort),
             radii_m=_readonly(self._radii_cache),
             mass_positions_world_m=_readonly(world_positions),
             hemi_acceleration_g=_readonly(hemi_g),

@@ -46,7 +46,7 @@ from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 from splitter_sim.core.actuators import validate_joint_command
-from splitter_sim.core.robot_errors import Gyro, RobotErrors
+from splitter_sim.core.robot_errors import EffortSensor, Gyro, RobotErrors
 from splitter_sim.core.scene import Ground, Scene, scene_of_state
 from splitter_sim.core.settings import SimulatorSettings
 from splitter_sim.core.simulator import SimState, Simulator
@@ -162,6 +162,8 @@ class SimulatorTick:
         self._lag = CommandLag(lag_s, self.control_ns * 1e-9) if lag_s > 0.0 else None
         self._gyro = Gyro(self.errors)
         self._gyro_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], rate)
+        self._effort = EffortSensor(self.errors)
+        self._effort_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], effort)
 
     def describe(self) -> str:
         """Mode, step, gravity, ground and duration in one line (the node's start-up log)."""
@@ -309,6 +311,16 @@ class SimulatorTick:
         if self._gyro_reading is None or self._gyro_reading[0] != state.t_ns:
             self._gyro_reading = (state.t_ns, self._gyro.read(state.angular_velocity_rad_s))
         return self._gyro_reading[1]
+
+    def joint_effort_reading(self, state: SimState) -> NDArray[np.float64]:
+        """What the joint effort sensors read of ``state``'s true efforts (limbs [N m], tether [N]).
+
+        One reading per simulated time, as :meth:`gyro_reading`; without effort noise,
+        the true efforts themselves.
+        """
+        if self._effort_reading is None or self._effort_reading[0] != state.t_ns:
+            self._effort_reading = (state.t_ns, self._effort.read(state.joint_effort))
+        return self._effort_reading[1]
 
     def publishable_state(self) -> SimState | None:
         """The state to publish now, None when it is not finite (counted)."""
