@@ -32,8 +32,15 @@ from splitter_msgs_py import names
 SCENARIO = "spin_stabilization_robot_errors"
 DURATION_S = 3.0  # [s] simulated
 # what the simulator computes exactly and a robot cannot measure
-GROUND_TRUTH = (*names.TRUTH_TOPICS, names.INERTIA, names.ODOM, *names.CONTACT_WRENCHES)
+GROUND_TRUTH = (
+    *names.TRUTH_TOPICS,
+    names.INERTIA,
+    names.ODOM,
+    *names.CONTACT_WRENCHES,
+    names.SCENE_MASSES,
+)
 ESTIMATE_READERS = ("inertial_morphing_mpc", "ik_tether_allocator")
+GAIT_NODE = "gait_phase_manager"
 
 
 def _subscriptions(node_name: str) -> set[str]:
@@ -52,11 +59,14 @@ def _subscriptions(node_name: str) -> set[str]:
         context.try_shutdown()
 
 
-@pytest.mark.parametrize("node_name", [*ESTIMATE_READERS, ESTIMATOR_NODE])
+@pytest.mark.parametrize("node_name", [*ESTIMATE_READERS, ESTIMATOR_NODE, GAIT_NODE])
 def test_the_controllers_read_estimates_not_ground_truth(node_name: str) -> None:
     topics = _subscriptions(node_name)
     assert not topics & set(GROUND_TRUTH), f"{node_name} reads ground truth: {topics}"
-    if node_name == ESTIMATOR_NODE:
+    if node_name == GAIT_NODE:  # its own sensors: IMU, rangefinders, leg load cells, encoders
+        expected = {names.IMU, *names.RANGES, *names.LEG_FORCES, names.JOINT_STATES}
+        assert topics - {names.CLOCK} == expected
+    elif node_name == ESTIMATOR_NODE:
         assert topics - {names.CLOCK} == {names.IMU, names.JOINT_STATES}  # gyro, joint sensors
     else:
         assert {names.ESTIMATE_IMU, names.ESTIMATE_INERTIA} <= topics

@@ -5,8 +5,8 @@ checks, the tick joining, the answer; the library loop drives the same object)
 and its :class:`~splitter_mpc.core.gait.GaitPhaseMachine`.
 
 Lockstep (docs/ARCHITECTURE.md, item 5): the node answers control tick ``t``
-(``t`` on the ``control_period_s`` grid) once it holds ``/splitter/odom``, both
-contact wrenches and ``/splitter/joint_states`` stamped ``t`` (and
+(``t`` on the ``control_period_s`` grid) once it holds ``/splitter/imu``, both
+rangefinders, both leg load cells and ``/splitter/joint_states`` stamped ``t`` (and
 ``/splitter/inertia`` with ``attitude_reference: momentum_aligned``, the one mode
 that needs it); it publishes ``/splitter/jump_command`` stamped ``t`` (a zero
 wrench when not thrusting) on every tick it answers. Waiting for all inputs of
@@ -26,12 +26,14 @@ every rejection is a throttled warning, counted and reported on ``/diagnostics``
   still answers its tick, from the last good message of that topic, so lockstep
   never stalls on bad data.
 
-Subscribes: ``/splitter/odom``, ``/splitter/hemi_{a,b}/contact_wrench`` (stance:
-world-z force above ``stance_force_threshold_n``), ``/splitter/joint_states``
-(``r_x`` = tether joint / 2), ``/splitter/inertia`` in mode ``momentum_aligned``
-only (the measured principal moments: with the odom's body rate, the angular
-momentum that mode aligns the reference with; the very numbers the MPC and the
-recorded run see).
+Subscribes only to what the robot measures: ``/splitter/imu`` (attitude, gyro,
+accelerometer), ``/splitter/hemi_{a,b}/range`` (height), ``/splitter/hemi_{a,b}/leg_force``
+(stance: the legs push harder than ``stance_force_threshold_n``),
+``/splitter/joint_states`` (``r_x`` = tether joint / 2), and ``/splitter/inertia``
+in mode ``momentum_aligned`` only (the principal moments the controllers use: with
+the gyro's rate, the angular momentum that mode aligns the reference with; remapped
+to the flight estimator's with robot errors). Never the odometry or the contact
+wrenches (ground truth).
 Publishes: ``/splitter/jump_command`` (every tick), ``/splitter/gait_phase``,
 ``/splitter/attitude_reference`` and ``/splitter/attitude_reference_pose``
 (latched, on change), ``/diagnostics`` (every ``diagnostics_period_s`` of
@@ -45,15 +47,14 @@ from collections.abc import Callable, Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState, Range
 from std_msgs.msg import String
 
 from splitter_model.actuators import TETHER_INDEX
 from splitter_mpc.core.gait import GaitConfig, GaitOutput
+from splitter_mpc.core.gait_sensing import BodySensingConfig, ImuReading
 from splitter_mpc.core.gait_tick import (
-    BodyState,
     GaitAnswer,
     GaitNodeSettings,
     GaitTick,
@@ -63,10 +64,11 @@ from splitter_mpc.core.tick_inputs import TickEvents
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MessageValidationError,
+    imu_from_msg,
     joint_state_from_msg,
-    odom_from_msg,
     pose_to_msg,
     principal_inertia_from_msg,
+    range_from_msg,
     twist_to_msg,
     wrench_from_msg,
     wrench_to_msg,
@@ -83,7 +85,11 @@ from splitter_msgs_py.parameters import (
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
 
 NODE_NAME = "gait_phase_manager"
-PARAMETERS = (*specs_from_config(GaitNodeSettings), *specs_from_config(GaitConfig))
+PARAMETERS = (
+    *specs_from_config(GaitNodeSettings),
+    *specs_from_config(GaitConfig),
+    *specs_from_config(BodySensingConfig),
+)
 ZERO = (0.0, 0.0, 0.0)
 
 
@@ -92,21 +98,25 @@ def _frame(field_name: str, got: str, expected: str) -> None:
         raise MessageValidationError(f"{field_name}: expected '{expected}', got {got!r}")
 
 
-def _read_odom(msg: Odometry) -> BodyState:
-    _frame("header.frame_id", msg.header.frame_id, names.WORLD_FRAME)
-    _frame("child_frame_id", msg.child_frame_id, names.BASE_FRAME)  # the frame of the twist
-    sample = odom_from_msg(msg)
-    return BodyState(
-        sample.position_m,
-        sample.velocity_world_m_s,
-        sample.orientation_wxyz,
-        sample.angular_velocity_rad_s,
+def _read_imu(msg: Imu) -> ImuReading:
+    _frame("header.frame_id", msg.header.frame_id, names.BASE_FRAME)
+    sample = imu_from_msg(msg)
+    return ImuReading(
+        sample.orientation_wxyz, sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
     )
 
 
-def _read_contact(msg: WrenchStamped) -> object:
+def _range_reader(frame: str) -> Callable[[Range], float]:
+    def read(msg: Range) -> float:
+        _frame("header.frame_id", msg.header.frame_id, frame)
+        return range_from_msg(msg)[1]
+
+    return read
+
+
+def _read_leg_force(msg: WrenchStamped) -> object:
     sample = wrench_from_msg(msg)
-    _frame("header.frame_id", sample.frame_id, names.WORLD_FRAME)
+    _frame("header.frame_id", sample.frame_id, names.BASE_FRAME)
     return sample.force_n
 
 
@@ -115,9 +125,11 @@ def _read_tether(msg: JointState) -> float:
 
 
 READERS: dict[str, tuple[type, Callable[[object], object]]] = {
-    names.ODOM: (Odometry, _read_odom),
-    names.CONTACT_WRENCH_A: (WrenchStamped, _read_contact),
-    names.CONTACT_WRENCH_B: (WrenchStamped, _read_contact),
+    names.IMU: (Imu, _read_imu),
+    names.RANGE_A: (Range, _range_reader(names.HEMI_FRAMES[0])),
+    names.RANGE_B: (Range, _range_reader(names.HEMI_FRAMES[1])),
+    names.LEG_FORCE_A: (WrenchStamped, _read_leg_force),
+    names.LEG_FORCE_B: (WrenchStamped, _read_leg_force),
     names.JOINT_STATES: (JointState, _read_tether),
     names.INERTIA: (Vector3Stamped, lambda msg: principal_inertia_from_msg(msg).vector),
 }
@@ -137,13 +149,13 @@ class GaitPhaseManagerNode(Node):
         try:
             values = declare_parameters(self, PARAMETERS, on_live_change=self._apply_live)
             try:
-                config, settings = gait_settings_from_parameters(values)
+                config, settings, sensing = gait_settings_from_parameters(values)
             except ValueError as exc:
                 raise _named_parameter_error(exc) from exc
         except InvalidParameterError:
             self.destroy_node()
             raise
-        self.tick = GaitTick(config, settings)
+        self.tick = GaitTick(config, settings, sensing)
         self._jump_pub = self.create_publisher(
             WrenchStamped, names.JUMP_COMMAND, qos_for(names.JUMP_COMMAND)
         )
@@ -176,7 +188,7 @@ class GaitPhaseManagerNode(Node):
     def _apply_live(self, values: Mapping[str, ParameterValue]) -> None:
         """A live change of the contact and landing thresholds, from the next tick on."""
         try:
-            config, _ = gait_settings_from_parameters(values)
+            config, _, _ = gait_settings_from_parameters(values)
         except ValueError as exc:
             raise _named_parameter_error(exc) from exc
         self.tick.machine.config = config

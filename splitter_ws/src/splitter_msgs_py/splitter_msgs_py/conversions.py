@@ -29,7 +29,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchS
 from nav_msgs.msg import Odometry
 from numpy.typing import ArrayLike, NDArray
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, Range
 
 from splitter_model.rotations import quaternion_to_matrix
 from splitter_msgs_py import names
@@ -385,6 +385,37 @@ def wrench_from_msg(msg: WrenchStamped) -> WrenchSample:
         torque_nm=_finite_xyz(msg.wrench.torque, "wrench.torque"),
         frame_id=msg.header.frame_id,
     )
+
+
+# --- rangefinder ----------------------------------------------------------------------------
+def range_to_msg(
+    t_ns: int,
+    range_m: float,
+    frame_id: str,
+    *,
+    min_range_m: float,
+    max_range_m: float,
+    field_of_view_rad: float,
+) -> Range:
+    """sensor_msgs/Range of an infrared rangefinder; +-inf as REP 117 (no return / too close)."""
+    value = float(range_m)
+    if math.isnan(value):
+        raise MessageValidationError("range: NaN")
+    msg = _stamped(Range, t_ns, frame_id)
+    msg.radiation_type = Range.INFRARED
+    msg.field_of_view = float(field_of_view_rad)
+    msg.min_range = float(min_range_m)
+    msg.max_range = float(max_range_m)
+    msg.range = value
+    return msg
+
+
+def range_from_msg(msg: Range) -> tuple[int, float]:
+    """(stamp [ns], range [m]); +-inf (REP 117) kept, NaN and negative finite values refused."""
+    value = float(msg.range)
+    if math.isnan(value) or (math.isfinite(value) and value < 0.0):
+        raise MessageValidationError(f"range: {value} is not a distance")
+    return stamp_from_msg(msg.header.stamp), value
 
 
 # --- attitude reference -----------------------------------------------------------------------

@@ -36,6 +36,15 @@ CONTACT_WRENCHES: Final = (CONTACT_WRENCH_A, CONTACT_WRENCH_B)
 # geometry_msgs/PoseArray on the markers grid: with odom, inertia, imu and the contact
 # wrenches, the whole scene as data (splitter_sim.messages).
 SCENE_MASSES: Final = "/splitter/scene/masses"
+# The gait's own sensors (splitter_model.sensors), per hemi: its downward rangefinder
+# (sensor_msgs/Range, frame hemi_a / hemi_b, ray along base -z) and its legs' load cell
+# (geometry_msgs/WrenchStamped, force in the base frame; the legs' push only).
+RANGE_A: Final = "/splitter/hemi_a/range"
+RANGE_B: Final = "/splitter/hemi_b/range"
+RANGES: Final = (RANGE_A, RANGE_B)
+LEG_FORCE_A: Final = "/splitter/hemi_a/leg_force"
+LEG_FORCE_B: Final = "/splitter/hemi_b/leg_force"
+LEG_FORCES: Final = (LEG_FORCE_A, LEG_FORCE_B)
 # Ground truth (DESIGN.md section 3, "What controllers may read"): the simulator's exact
 # state for bags and metrics; no controller subscribes to it. TRUTH_IMU: the exact body
 # rate and attitude (IMU carries what the robot's gyro reads: with the scenario's bias
@@ -69,6 +78,10 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     JUMP_COMMAND: "geometry_msgs/msg/WrenchStamped",
     MARKERS: "visualization_msgs/msg/MarkerArray",
     SCENE_MASSES: "geometry_msgs/msg/PoseArray",
+    RANGE_A: "sensor_msgs/msg/Range",
+    RANGE_B: "sensor_msgs/msg/Range",
+    LEG_FORCE_A: "geometry_msgs/msg/WrenchStamped",
+    LEG_FORCE_B: "geometry_msgs/msg/WrenchStamped",
     TRUTH_IMU: "sensor_msgs/msg/Imu",
     TRUTH_INERTIA: "geometry_msgs/msg/Vector3Stamped",
     ESTIMATE_IMU: "sensor_msgs/msg/Imu",

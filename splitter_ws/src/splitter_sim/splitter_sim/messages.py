@@ -21,14 +21,22 @@ from collections.abc import Sequence
 
 import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseArray
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from visualization_msgs.msg import Marker, MarkerArray
 
+from splitter_model.rotations import quaternion_to_matrix
+from splitter_model.sensors import (
+    RANGE_FIELD_OF_VIEW_RAD,
+    RANGE_MAX_M,
+    RANGE_MIN_M,
+    downward_range_m,
+)
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MessageValidationError
 from splitter_sim.core.scene import BODY_INDICES, N_MASSES, Scene
 from splitter_sim.core.simulator import SimState
+from splitter_sim.core.tick import SensorReadings
 
 MASS_NS = "splitter_masses"
 BODY_SIZE_M = 0.25  # [m] sphere diameter of a hemi body
@@ -116,23 +124,29 @@ def masses_from_msg(msg: PoseArray) -> NDArray[np.float64]:
 
 
 def state_messages(
-    state: SimState,
-    gyro_rad_s: ArrayLike | None = None,
-    gyro_noise_rad_s: float = 0.0,
-    joint_effort: ArrayLike | None = None,
+    state: SimState, readings: SensorReadings | None = None
 ) -> list[tuple[str, object]]:
     """(topic, message) of every state stream of one step, stamped ``state.t_ns``.
 
-    ``/splitter/joint_states`` carries the encoders (exact) and the effort sensors'
-    reading ``joint_effort`` (default: the true efforts).
-
-    ``/splitter/imu`` carries the rate gyro's reading ``gyro_rad_s`` (default: the
-    true rate), its noise variance ``gyro_noise_rad_s**2`` on the diagonal of
-    ``angular_velocity_covariance``; the ground truth goes on ``/splitter/truth/imu``
-    (exact rate and attitude) and ``/splitter/truth/inertia`` (exact principal
-    moments), before the IMU, the step's last message.
+    What the robot's sensors read (``readings``; default: the truth, exactly):
+    ``/splitter/joint_states`` carries the encoders (exact) and the effort sensors;
+    ``/splitter/imu`` the rate gyro (its noise variance on the diagonal of
+    ``angular_velocity_covariance``); ``/splitter/hemi_*/range`` the rangefinders and
+    ``/splitter/hemi_*/leg_force`` the legs' load cells. The ground truth goes on
+    ``/splitter/truth/imu`` (exact rate and attitude), ``/splitter/truth/inertia``
+    (exact principal moments), ``/splitter/odom`` and the contact wrenches; the IMU
+    is the step's last message.
     """
     t, q, w = state.t_ns, state.orientation_wxyz, state.angular_velocity_rad_s
+    gyro = w if readings is None else readings.gyro_rad_s
+    gyro_noise = 0.0 if readings is None else readings.gyro_noise_rad_s
+    effort = state.joint_effort if readings is None else readings.joint_effort
+    if readings is None:
+        rot = quaternion_to_matrix(q)
+        ranges = [downward_range_m(state.mass_positions_world_m[b, 2], rot) for b in BODY_INDICES]
+        leg_forces = state.leg_force_n @ rot
+    else:
+        ranges, leg_forces = readings.ranges_m, readings.leg_forces_n
     inertia = cv.vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME)
     acceleration = state.linear_acceleration_m_s2
     return [
@@ -143,8 +157,26 @@ def state_messages(
                 t,
                 state.joint_position,
                 state.joint_velocity,
-                state.joint_effort if joint_effort is None else joint_effort,
+                effort,
             ),
+        ),
+        *(
+            (
+                topic,
+                cv.range_to_msg(
+                    t,
+                    value,
+                    frame,
+                    min_range_m=RANGE_MIN_M,
+                    max_range_m=RANGE_MAX_M,
+                    field_of_view_rad=RANGE_FIELD_OF_VIEW_RAD,
+                ),
+            )
+            for topic, value, frame in zip(names.RANGES, ranges, names.HEMI_FRAMES, strict=True)
+        ),
+        *(
+            (topic, cv.wrench_to_msg(t, force, (0.0, 0.0, 0.0), names.BASE_FRAME))
+            for topic, force in zip(names.LEG_FORCES, leg_forces, strict=True)
         ),
         (names.INERTIA, inertia),
         (names.ODOM, cv.odom_to_msg(t, state.position_m, q, state.velocity_m_s, w)),
@@ -158,12 +190,6 @@ def state_messages(
         (names.TRUTH_IMU, cv.imu_to_msg(t, q, w, acceleration)),
         (
             names.IMU,
-            cv.imu_to_msg(
-                t,
-                q,
-                w if gyro_rad_s is None else gyro_rad_s,
-                acceleration,
-                angular_velocity_variance=gyro_noise_rad_s**2,
-            ),
+            cv.imu_to_msg(t, q, gyro, acceleration, angular_velocity_variance=gyro_noise**2),
         ),
     ]

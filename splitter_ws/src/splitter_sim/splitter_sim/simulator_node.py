@@ -51,10 +51,17 @@ from splitter_sim.core.tick import JOINT_KEY, JUMP_KEY, LOCKSTEP_TOPICS, Simulat
 from splitter_sim.messages import masses_to_msg, scene_markers, state_messages
 
 NODE_NAME = "simulator"
-STATE_TOPICS = (names.JOINT_STATES, names.INERTIA, names.ODOM, *names.CONTACT_WRENCHES, names.IMU)
-# every step too, but not waited for at the start (only controllers' inputs are), except
-# by the subscribers named in startup_wait_for_subscribers (a recorder)
-TRUTH_TOPICS = names.TRUTH_TOPICS
+# what the robot's sensors read, every step: the controllers' inputs, waited for at the start
+STATE_TOPICS = (
+    names.JOINT_STATES,
+    names.INERTIA,
+    *names.RANGES,
+    *names.LEG_FORCES,
+    names.IMU,
+)
+# the ground truth, every step too, but not waited for at the start (no controller reads
+# it), except by the subscribers named in startup_wait_for_subscribers (a recorder)
+TRUTH_TOPICS = (*names.TRUTH_TOPICS, names.ODOM, *names.CONTACT_WRENCHES)
 PUBLISHED = (
     names.CLOCK,
     *STATE_TOPICS,
@@ -303,12 +310,7 @@ class SimulatorNode(Node):
         try:
             if state is None:
                 raise cv.MessageValidationError("non-finite simulator state")
-            msgs = state_messages(
-                state,
-                self.tick.gyro_reading(state),
-                self.tick.errors.gyro_noise_rad_s,
-                self.tick.joint_effort_reading(state),
-            )
+            msgs = state_messages(state, self.tick.readings(state))
         except cv.MessageValidationError as exc:
             self.tick.unpublished += state is not None
             self.get_logger().error(

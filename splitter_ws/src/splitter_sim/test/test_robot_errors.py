@@ -36,6 +36,8 @@ CONTROL_NS = 10_000_000  # [ns]
         ({"actuator_lag_s": math.nan}, "actuator_lag_s"),
         ({"joint_effort_noise": -0.1}, "joint_effort_noise"),
         ({"joint_effort_noise": math.nan}, "joint_effort_noise"),
+        ({"range_noise_m": -0.01}, "range_noise_m"),
+        ({"leg_force_noise_n": math.inf}, "leg_force_noise_n"),
         ({"noise_seed": -1}, "noise_seed"),
         ({"noise_seed": 1.5}, "noise_seed"),
         ({"noise_seed": True}, "noise_seed"),
@@ -159,3 +161,24 @@ def test_the_effort_sensors_read_the_true_efforts_with_their_noise() -> None:
     nominal = _tick(RobotErrors())
     s = nominal.state()
     np.testing.assert_array_equal(nominal.joint_effort_reading(s), s.joint_effort)
+
+
+def test_the_rangefinders_and_leg_load_cells_read_with_their_noise() -> None:
+    """Level and in flight (the nominal initial state): each rangefinder reads its hemi
+    body's height, with noise on a return only; the legs push nothing."""
+    tick = _tick(RobotErrors(range_noise_m=0.01, leg_force_noise_n=0.5, noise_seed=3))
+    state = tick.state()
+    heights = state.mass_positions_world_m[[0, 5], 2]
+    readings = tick.readings(state)
+    assert readings is not None
+    np.testing.assert_array_equal(tick.range_reading(state), tick.range_reading(state))
+    finite = heights <= 20.0
+    assert finite.any()
+    np.testing.assert_allclose(readings.ranges_m[finite], heights[finite], atol=0.05)
+    assert not np.array_equal(readings.ranges_m[finite], heights[finite])  # noisy
+    assert readings.ranges_m.dtype == np.float64  # float32 values, as the message carries
+    np.testing.assert_array_equal(readings.ranges_m, readings.ranges_m.astype(np.float32))
+    assert 0.0 < float(np.abs(readings.leg_forces_n).max()) < 3.0  # noise about zero push
+    exact = _tick(RobotErrors())
+    s = exact.state()
+    assert not exact.readings(s).leg_forces_n.any()

@@ -409,10 +409,16 @@ def test_lunar_drop_onto_compliant_legs_stays_within_their_force_limit() -> None
     assert end.in_contact.all()
     np.testing.assert_allclose(end.contact_force_n[:, 2], [weight / 2, weight / 2], rtol=0.01)
     assert 0.0 < end.mass_positions_world_m[:, 2].min() < config.thrust_stroke_m
+    # The legs' load cells carry the same weight, and only they: their force is the
+    # contact force (no lumped mass touches); the rigid drop's masses are not seen by them.
+    np.testing.assert_allclose(end.leg_force_n, end.contact_force_n, atol=1e-12)
+    peak_legs = max(float(np.linalg.norm(s.leg_force_n, axis=1).max()) for s in states)
+    assert peak_legs == pytest.approx(peak, rel=1e-12)
     # The same drop without the legs: the masses hit the ground, far above the limbs' limit.
     _, rigid = _lunar_drop(compliant_legs=False)
     assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in rigid) > 1000.0
     assert min(float(s.mass_positions_world_m[:, 2].min()) for s in rigid) < 0.0
+    assert not any(s.leg_force_n.any() for s in rigid)
 
 
 @pytest.mark.parametrize("compiled", [True, False])

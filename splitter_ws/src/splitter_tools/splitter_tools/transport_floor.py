@@ -34,7 +34,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, Range
 
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg, stamp_to_msg
@@ -49,9 +49,9 @@ _LOG = logging.getLogger(__name__)
 SUBSCRIPTIONS: dict[str, tuple[str, ...]] = {
     "simulator": (names.JOINT_COMMANDS, names.JUMP_COMMAND),
     "gait_phase_manager": (
-        names.ODOM,
-        names.CONTACT_WRENCH_A,
-        names.CONTACT_WRENCH_B,
+        names.IMU,
+        *names.RANGES,
+        *names.LEG_FORCES,
         names.JOINT_STATES,
     ),
     "inertial_morphing_mpc": (
@@ -84,6 +84,8 @@ STATE_TOPICS = (
     names.ODOM,
     names.CONTACT_WRENCH_A,
     names.CONTACT_WRENCH_B,
+    *names.RANGES,
+    *names.LEG_FORCES,
     names.IMU,
 )
 RECORDED_TOPICS = (*STATE_TOPICS, names.INERTIA_SETPOINT, names.JOINT_COMMANDS, names.JUMP_COMMAND)
@@ -142,6 +144,8 @@ def _state_messages() -> dict[str, object]:
         names.ODOM: odom,
         names.CONTACT_WRENCH_A: WrenchStamped(),
         names.CONTACT_WRENCH_B: WrenchStamped(),
+        **{topic: Range(range=1.0) for topic in names.RANGES},
+        **{topic: WrenchStamped() for topic in names.LEG_FORCES},
         names.IMU: imu,
     }
 

@@ -47,7 +47,8 @@ from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
 from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample, JointReading
-from splitter_mpc.core.gait_tick import BodyState, GaitTick, gait_settings_from_parameters
+from splitter_mpc.core.gait_sensing import ImuReading
+from splitter_mpc.core.gait_tick import GaitTick, gait_settings_from_parameters
 from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.mpc_tick import MpcTick, MpcTickSettings
 from splitter_mpc.core.ocp import MpcWeights
@@ -176,29 +177,29 @@ def run_closed_loop(
     for step in range(n_steps + 1):
         state = sim.state()
         t = state.t_ns
-        gyro = sim.gyro_reading(state)  # the rate of the imu message (one per step)
-        effort = sim.joint_effort_reading(state)  # the joint_states' efforts (one per step)
+        readings = sim.readings(state)  # what the robot's sensors read (once per step)
+        gyro = readings.gyro_rad_s
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
             rate, attitude, inertia = gyro, q_measured, state.principal_inertia_kg_m2
             masses = None
             if flight is not None:  # the controllers' imu and inertia: the estimator's
-                joints = JointReading(state.joint_position, state.joint_velocity, effort)
+                joints = JointReading(
+                    state.joint_position, state.joint_velocity, readings.joint_effort
+                )
                 estimate = flight.on_sensors(t, GyroSample(gyro, q_measured), joints)
                 estimates.append(estimate)
                 rate = estimate.angular_velocity_rad_s
                 attitude = received_quaternion(estimate.orientation_wxyz, hops=1)
                 inertia, masses = estimate.principal_inertia_kg_m2, estimate.masses_kg
-            body = BodyState(
-                state.position_m, state.velocity_m_s, q_measured, state.angular_velocity_rad_s
-            )
-            answer = gait.on_state(
+            answer = gait.on_sensors(
                 t,
-                body,
-                state.contact_force_n,
+                ImuReading(q_measured, gyro, state.linear_acceleration_m_s2),
+                readings.ranges_m,
+                readings.leg_forces_n,
                 float(state.joint_position[TETHER_INDEX]),
-                principal_inertia_kg_m2=state.principal_inertia_kg_m2,  # /splitter/inertia
+                principal_inertia_kg_m2=inertia,  # /splitter/inertia (or the estimator's)
             )
             if answer.error:
                 raise ValueError(f"gait phase manager at t = {t * 1e-9:.3f} s: {answer.error}")

@@ -8,7 +8,7 @@ overrides, so both ways run the same graph.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -119,14 +119,11 @@ def simulator_parameters(
 def robot_error_parameters(scenario: Scenario) -> dict:
     """The simulator's parameters of the scenario's robot errors (``RobotErrors``' fields)."""
     e = scenario.robot_errors
-    return {
-        "mass_scale": _floats(e.mass_scale),
-        "gyro_noise_rad_s": float(e.gyro_noise_rad_s),
-        "gyro_bias_rad_s": _floats(e.gyro_bias_rad_s),
-        "actuator_lag_s": float(e.actuator_lag_s),
-        "joint_effort_noise": float(e.joint_effort_noise),
-        "noise_seed": int(e.noise_seed),
-    }
+    values: dict = {}
+    for f in fields(e):
+        value = getattr(e, f.name)
+        values[f.name] = _floats(value) if isinstance(value, tuple) else value
+    return values
 
 
 def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
@@ -171,6 +168,7 @@ def gait_parameters(scenario: Scenario) -> dict:
         "use_sim_time": True,
         "w_ref_rad_s": _floats(c.w_ref_rad_s),
         "attitude_reference": c.attitude_reference,
+        "gravity_m_s2": float(scenario.gravity_m_s2),  # the planet the robot is on
         "jump_times_s": [float(j.time_s) for j in scenario.jumps],
         "jump_forces_n": [float(f) for j in scenario.jumps for f in j.force_n],
         "jump_durations_s": [float(j.duration_s) for j in scenario.jumps],
@@ -248,6 +246,7 @@ def graph_nodes(
             "splitter_mpc.gait_phase_manager_node:main",
             "splitter_mpc.gait_phase_manager_node:GaitPhaseManagerNode",
             gait_parameters(scenario),
+            {names.INERTIA: names.ESTIMATE_INERTIA} if estimated else {},
         ),
         NodeLaunch(
             "simulator",

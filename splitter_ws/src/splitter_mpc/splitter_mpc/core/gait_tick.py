@@ -6,10 +6,14 @@ object with the simulator's state (:meth:`GaitTick.on_state`). Per control tick
 ``t`` (a multiple of ``control_period_s``):
 
 * inputs, filed under their stamp's tick by a
-  :class:`~splitter_mpc.core.tick_inputs.TickAssembler`: the body state of
-  ``/splitter/odom`` (:class:`BodyState`), each hemi's contact force [N] (world),
+  :class:`~splitter_mpc.core.tick_inputs.TickAssembler`: only what the robot
+  measures (DESIGN.md section 3): the IMU (:class:`ImuReading`: attitude, gyro,
+  accelerometer), each hemi's rangefinder [m] and leg load cell [N] (base frame),
   the tether length [m] of ``/splitter/joint_states`` and, for the
-  ``momentum_aligned`` attitude reference only, the measured principal moments;
+  ``momentum_aligned`` attitude reference only, the principal moments the
+  controllers use; the body's height and velocity are estimated from them
+  (:class:`~splitter_mpc.core.gait_sensing.BodyMotionEstimator`), a hemi is in
+  stance when its legs push harder than ``stance_force_threshold_n``;
 * stamp rules: :attr:`GaitTick.stamps` (a :class:`StampGate` the node applies to
   every message before it is read);
 * plausibility (:meth:`GaitTick.checked`): beyond the limits below a value is
@@ -22,18 +26,26 @@ object with the simulator's state (:meth:`GaitTick.on_state`). Per control tick
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from splitter_model.sensors import RANGE_MAX_M
 from splitter_mpc.core.gait import (
     GaitConfig,
     GaitOutput,
     GaitPhaseMachine,
     gait_config_from_parameters,
     seconds_to_ns,
+)
+from splitter_mpc.core.gait_sensing import (
+    BodyMotionEstimator,
+    BodySensingConfig,
+    ImuReading,
+    leg_stance_force_n,
 )
 from splitter_mpc.core.tick_inputs import TickAssembler, TickEvents
 from splitter_msgs_py import names
@@ -47,12 +59,11 @@ from splitter_msgs_py.core.stamps import (
     clock_value,
 )
 
-TICK_INPUTS = (names.ODOM, names.CONTACT_WRENCH_A, names.CONTACT_WRENCH_B, names.JOINT_STATES)
+TICK_INPUTS = (names.IMU, *names.RANGES, *names.LEG_FORCES, names.JOINT_STATES)
 # and /splitter/inertia when the attitude reference needs it (GaitConfig.needs_principal_inertia)
-MAX_POSITION_M = 1.0e6  # [m] per odom position component (runs stay within ~100 m)
-MAX_SPEED_M_S = 1.0e3  # [m/s] per odom velocity component (a jump is a few m/s)
-MAX_BODY_RATE_RAD_S = 1.0e3  # [rad/s] per odom body-rate component (spin ~1 rad/s)
-MAX_CONTACT_FORCE_N = 1.0e7  # [N] per contact force component (weight ~ 30 N on the moon)
+MAX_BODY_RATE_RAD_S = 1.0e3  # [rad/s] per gyro component (spin ~1 rad/s)
+MAX_SPECIFIC_FORCE_M_S2 = 1.0e4  # [m/s^2] per accelerometer component (landings: ~10 G)
+MAX_LEG_FORCE_N = 1.0e7  # [N] per leg load component (weight ~ 30 N on the moon)
 MAX_TETHER_LENGTH_M = 100.0  # [m] tether joint position (the reel holds 6 m)
 
 
@@ -100,29 +111,23 @@ class GaitNodeSettings:
 
 def gait_settings_from_parameters(
     values: Mapping[str, object],
-) -> tuple[GaitConfig, GaitNodeSettings]:
-    """The machine's configuration and the node's settings from its parameter values.
+) -> tuple[GaitConfig, GaitNodeSettings, BodySensingConfig]:
+    """The machine's configuration, the node's settings and the body-motion estimator's
+    from its parameter values.
 
     Missing values take the defaults; ``ValueError`` names the parameter (``"name: reason"``).
     """
-    settings = GaitNodeSettings(
-        **{
+
+    def fields_of(config_type: type) -> dict:
+        return {
             name: tuple(values[name]) if isinstance(default, tuple) else values[name]  # type: ignore[arg-type]
-            for name, default, _info in parameter_fields(GaitNodeSettings)
+            for name, default, _info in parameter_fields(config_type)
             if name in values
         }
-    )
-    return gait_config_from_parameters(values), settings
 
-
-@dataclass(frozen=True)
-class BodyState:
-    """What ``/splitter/odom`` carries for the machine (world position and velocity)."""
-
-    position_m: NDArray[np.float64]
-    velocity_m_s: NDArray[np.float64]  # [m/s] world frame
-    orientation_wxyz: NDArray[np.float64]  # world <- base
-    angular_velocity_rad_s: NDArray[np.float64]  # [rad/s] base frame
+    settings = GaitNodeSettings(**fields_of(GaitNodeSettings))
+    sensing = BodySensingConfig(**fields_of(BodySensingConfig))
+    return gait_config_from_parameters(values), settings, sensing
 
 
 @dataclass(frozen=True)
@@ -146,9 +151,15 @@ def _check_bound(field_name: str, values: ArrayLike, limit: float, unit: str) ->
 class GaitTick:
     """The gait phase manager's per-tick logic around :class:`GaitPhaseMachine`."""
 
-    def __init__(self, config: GaitConfig, settings: GaitNodeSettings | None = None) -> None:
+    def __init__(
+        self,
+        config: GaitConfig,
+        settings: GaitNodeSettings | None = None,
+        sensing: BodySensingConfig | None = None,
+    ) -> None:
         self.settings = settings or GaitNodeSettings()
         self.machine = GaitPhaseMachine(config)
+        self.body = BodyMotionEstimator(sensing)
         optional = (names.INERTIA,) if config.needs_principal_inertia else ()
         self.ticks = TickAssembler(self.settings.control_period_ns, TICK_INPUTS + optional)
         self.stamps = StampGate(MAX_STAMP_LEAD_NS)
@@ -166,13 +177,23 @@ class GaitTick:
     @staticmethod
     def checked(topic: str, value: object) -> object:
         """``value`` of ``topic`` if plausible; ``MessageValidationError`` naming the field."""
-        if topic == names.ODOM:
-            body: BodyState = value  # type: ignore[assignment]
-            _check_bound("pose.position", body.position_m, MAX_POSITION_M, "m")
-            _check_bound("twist.linear", body.velocity_m_s, MAX_SPEED_M_S, "m/s")
-            _check_bound("twist.angular", body.angular_velocity_rad_s, MAX_BODY_RATE_RAD_S, "rad/s")
-        elif topic in names.CONTACT_WRENCHES:
-            _check_bound("wrench.force", value, MAX_CONTACT_FORCE_N, "N")  # type: ignore[arg-type]
+        if topic == names.IMU:
+            imu: ImuReading = value  # type: ignore[assignment]
+            rate = imu.angular_velocity_rad_s
+            _check_bound("angular_velocity", rate, MAX_BODY_RATE_RAD_S, "rad/s")
+            _check_bound(
+                "linear_acceleration", imu.specific_force_m_s2, MAX_SPECIFIC_FORCE_M_S2, "m/s^2"
+            )
+        elif topic in names.LEG_FORCES:
+            _check_bound("wrench.force", value, MAX_LEG_FORCE_N, "N")  # type: ignore[arg-type]
+        elif topic in names.RANGES:
+            distance = float(value)  # type: ignore[arg-type]
+            if math.isnan(distance) or (math.isfinite(distance) and distance < 0.0):
+                raise MessageValidationError(f"range: {distance} is not a distance")
+            if math.isfinite(distance) and distance > RANGE_MAX_M:  # the sensor says +inf then
+                raise MessageValidationError(
+                    f"range: {distance} m beyond the rangefinder's {RANGE_MAX_M:g} m"
+                )
         elif topic == names.JOINT_STATES:
             tether = float(value)  # type: ignore[arg-type]
             if not 0.0 < tether <= MAX_TETHER_LENGTH_M:
@@ -195,11 +216,12 @@ class GaitTick:
         t_done, inputs = events.completed
         return events, self._answer(t_done, inputs, clock_ns)
 
-    def on_state(
+    def on_sensors(
         self,
         t_ns: int,
-        body: BodyState,
-        contact_force_n: ArrayLike,
+        imu: ImuReading,
+        ranges_m: ArrayLike,
+        leg_forces_n: ArrayLike,
         tether_m: float,
         *,
         principal_inertia_kg_m2: ArrayLike | None = None,
@@ -207,13 +229,17 @@ class GaitTick:
     ) -> GaitAnswer:
         """Tick ``t_ns`` from plain values (the library loop): every input filed at once.
 
-        ``contact_force_n``: (2, 3) world contact forces of hemi a and b [N].
+        ``ranges_m``: the rangefinders of hemi a and b [m]; ``leg_forces_n``: (2, 3) their
+        leg load cells, base frame [N].
         """
-        forces = np.asarray(contact_force_n, dtype=float)
+        forces = np.asarray(leg_forces_n, dtype=float)
+        ranges = [float(r) for r in np.asarray(ranges_m, dtype=float)]
         values = {
-            names.ODOM: body,
-            names.CONTACT_WRENCH_A: forces[0],
-            names.CONTACT_WRENCH_B: forces[1],
+            names.IMU: imu,
+            names.RANGE_A: ranges[0],
+            names.RANGE_B: ranges[1],
+            names.LEG_FORCE_A: forces[0],
+            names.LEG_FORCE_B: forces[1],
             names.JOINT_STATES: float(tether_m),
             names.INERTIA: principal_inertia_kg_m2,
         }
@@ -235,20 +261,30 @@ class GaitTick:
         if any(sample is None for sample in inputs.values()):
             self.stale_ticks += 1
         samples = self.ticks.samples(inputs)  # a rejected input: its topic's last good one
-        body, contact_a, contact_b, tether = (samples[topic] for topic in TICK_INPUTS)
+        imu, range_a, range_b, leg_a, leg_b, tether = (samples[topic] for topic in TICK_INPUTS)
         inertia = samples.get(names.INERTIA)
         output, error = None, ""
         no_good_input = any(sample is None for sample in samples.values())
         if not no_good_input:
             try:
+                imu_reading: ImuReading = imu  # type: ignore[assignment]
+                push = (leg_stance_force_n(leg_a), leg_stance_force_n(leg_b))  # type: ignore[arg-type]
+                threshold = self.config.stance_force_threshold_n
+                motion = self.body.update(
+                    t_ns,
+                    imu_reading,
+                    (range_a, range_b),  # type: ignore[arg-type]
+                    (push[0] > threshold, push[1] > threshold),
+                    0.5 * float(tether),  # type: ignore[arg-type]
+                )
                 output = self.machine.update(
                     t_ns,
-                    body.position_m,  # type: ignore[union-attr]
-                    body.velocity_m_s,  # type: ignore[union-attr]
-                    body.orientation_wxyz,  # type: ignore[union-attr]
-                    body.angular_velocity_rad_s,  # type: ignore[union-attr]
+                    motion.position_m,
+                    motion.velocity_m_s,
+                    imu_reading.orientation_wxyz,
+                    imu_reading.angular_velocity_rad_s,
                     0.5 * float(tether),  # type: ignore[arg-type]
-                    (float(contact_a[2]), float(contact_b[2])),  # type: ignore[index]
+                    push,
                     None if inertia is None else inertia,
                 )
             except ValueError as exc:  # inputs are validated: a bug, reported, zero thrust

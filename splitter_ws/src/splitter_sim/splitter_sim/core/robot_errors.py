@@ -13,11 +13,12 @@ as it really is. :class:`RobotErrors` says how that robot is wrong:
 * ``actuator_lag_s``: every joint and tether command reaches the servos through a
   first-order lag of this time constant
   (:class:`splitter_model.actuators.CommandLag`, the one actuator-lag model).
-* ``joint_effort_noise``: the joint effort sensors of ``/splitter/joint_states``
-  (limb torques [N m], the reel's tether tension [N]) read the true effort plus
-  white Gaussian noise of this standard deviation per joint and reading
-  (:class:`EffortSensor`, drawn from its own generator so the gyro's draws do not
-  depend on it).
+* ``joint_effort_noise``, ``range_noise_m``, ``leg_force_noise_n``: the joint
+  effort sensors of ``/splitter/joint_states`` (limb torques [N m], the reel's
+  tether tension [N]), the hemis' rangefinders and their legs' load cells read the
+  truth plus white Gaussian noise of this standard deviation per reading
+  (:class:`SensorNoise`, each sensor from its own generator so that the gyro's
+  draws do not depend on them).
 
 The defaults are the nominal robot: no error, and nothing drawn from a random
 generator, so a run without errors is bit-identical to one before they existed.
@@ -71,12 +72,26 @@ class RobotErrors:
         "[N] (tether tension)",
         bounds=(0.0, 100.0),
     )
+    range_noise_m: float = parameter_field(
+        0.0, "robot errors: white noise of each rangefinder reading, std [m]", bounds=(0.0, 10.0)
+    )
+    leg_force_noise_n: float = parameter_field(
+        0.0,
+        "robot errors: white noise of each leg load cell reading, std per axis [N]",
+        bounds=(0.0, 1000.0),
+    )
     noise_seed: int = parameter_field(
-        0, "robot errors: seed of the gyro and effort noise [-]", bounds=(0, SEED_MAX)
+        0, "robot errors: seed of the sensors' noise [-]", bounds=(0, SEED_MAX)
     )
 
     def __post_init__(self) -> None:
-        for name in ("gyro_noise_rad_s", "actuator_lag_s", "joint_effort_noise"):
+        for name in (
+            "gyro_noise_rad_s",
+            "actuator_lag_s",
+            "joint_effort_noise",
+            "range_noise_m",
+            "leg_force_noise_n",
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"{name}: a number, got {value!r}")
@@ -103,6 +118,8 @@ class RobotErrors:
             or any(self.gyro_bias_rad_s)
             or self.actuator_lag_s > 0.0
             or self.joint_effort_noise > 0.0
+            or self.range_noise_m > 0.0
+            or self.leg_force_noise_n > 0.0
         )
 
     def plant_model(self, nominal: RobotModel) -> RobotModel:
@@ -152,20 +169,23 @@ class Gyro:
         return w
 
 
-class EffortSensor:
-    """The joint effort sensors of :class:`RobotErrors`: true effort + white noise, per reading.
+class SensorNoise:
+    """White Gaussian noise of one sensor: ``read`` adds it to the truth, per reading.
 
-    One reading draws one normal per joint from ``default_rng([noise_seed, 1])``; without
-    noise nothing is drawn and the reading is the true effort itself.
+    ``stream`` numbers the sensor: its draws come from ``default_rng([seed, stream])``,
+    so each sensor's noise is its own (the gyro draws from ``default_rng(seed)``).
+    Without noise nothing is drawn and the reading is the truth itself.
     """
 
-    def __init__(self, errors: RobotErrors) -> None:
-        self.noise = errors.joint_effort_noise  # [N m] / [N] std per joint and reading
-        self._rng = np.random.default_rng([errors.noise_seed, 1])
+    EFFORT, RANGE, LEG_FORCE = 1, 2, 3  # the streams
 
-    def read(self, effort: ArrayLike) -> NDArray[np.float64]:
-        """The reading of the true joint efforts ``effort`` (limbs [N m], tether [N])."""
-        e = np.asarray(effort, dtype=float)
-        if self.noise > 0.0:
-            e = e + self._rng.normal(0.0, self.noise, e.shape)
-        return e
+    def __init__(self, std: float, seed: int, stream: int) -> None:
+        self.std = float(std)
+        self._rng = np.random.default_rng([seed, stream])
+
+    def read(self, truth: ArrayLike) -> NDArray[np.float64]:
+        """The reading of ``truth`` (any shape)."""
+        value = np.asarray(truth, dtype=float)
+        if self.std > 0.0:
+            value = value + self._rng.normal(0.0, self.std, value.shape)
+        return value

@@ -284,6 +284,9 @@ class SimState:
     thrust_force_n: NDArray[np.float64] = field(
         default_factory=lambda: np.zeros((2, 3))
     )  # (2, 3) jump thrust applied through each hemi body, world [N]
+    leg_force_n: NDArray[np.float64] = field(
+        default_factory=lambda: np.zeros((2, 3))
+    )  # (2, 3) each hemi's legs on it (stance force and jump thrust), world [N]
     in_thrust_range: NDArray[np.bool_] = field(
         default_factory=lambda: np.zeros(2, dtype=bool)
     )  # (2,) hemi within the leg stroke of the ground
@@ -860,6 +863,9 @@ class Simulator:
         thrust_hemi = np.zeros((2, 3))
         for i, f in thrust_on.items():
             thrust_hemi[HEMI_OF_MASS[i]] += f
+        leg_hemi = np.zeros((2, 3))  # what each hemi's legs push with: stance and thrust
+        for i, *f in legs + thrust:
+            leg_hemi[HEMI_OF_MASS[i]] += f
         in_contact = np.array([any(HEMI_OF_MASS[i] == h for i in contact) for h in (0, 1)])
         inertia = shape.inertia_matrix()
         w_arr = np.array(w)
@@ -896,6 +902,7 @@ class Simulator:
             actuator_work_j=float(s[13]),
             contact_torque_n_m=_readonly(torque_hemi),
             thrust_force_n=_readonly(thrust_hemi),
+            leg_force_n=_readonly(leg_hemi),
             in_thrust_range=_readonly([low[h] <= self.config.thrust_stroke_m for h in (0, 1)]),
             kinetic_energy_about_com_j=t_about,
         )

@@ -42,14 +42,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.actuators import CommandLag
+from splitter_model.rotations import quaternion_to_matrix
+from splitter_model.sensors import RANGE_MAX_M, RANGE_MIN_M, downward_range_m
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
 from splitter_sim.core.actuators import validate_joint_command
-from splitter_sim.core.robot_errors import EffortSensor, Gyro, RobotErrors
+from splitter_sim.core.robot_errors import Gyro, RobotErrors, SensorNoise
 from splitter_sim.core.scene import Ground, Scene, scene_of_state
 from splitter_sim.core.settings import SimulatorSettings
-from splitter_sim.core.simulator import SimState, Simulator
+from splitter_sim.core.simulator import HEMI_BODY_INDEX, SimState, Simulator
 from splitter_sim.core.stepping import (
     CommandQueue,
     LockstepWait,
@@ -117,6 +119,17 @@ class StartGate:
 
 
 @dataclass(frozen=True)
+class SensorReadings:
+    """What the robot's sensors read of one state (:meth:`SimulatorTick.readings`)."""
+
+    gyro_rad_s: NDArray[np.float64]  # (3,) body, with bias and noise
+    gyro_noise_rad_s: float  # [rad/s] the gyro's noise std (its datasheet)
+    joint_effort: NDArray[np.float64]  # (25,) limbs [N m], tether [N]
+    ranges_m: NDArray[np.float64]  # (2,) the hemis' rangefinders [m], float32 as sent
+    leg_forces_n: NDArray[np.float64]  # (2, 3) the hemis' leg load cells, base [N]
+
+
+@dataclass(frozen=True)
 class Published:
     """What a published step brings besides the state streams."""
 
@@ -162,8 +175,15 @@ class SimulatorTick:
         self._lag = CommandLag(lag_s, self.control_ns * 1e-9) if lag_s > 0.0 else None
         self._gyro = Gyro(self.errors)
         self._gyro_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], rate)
-        self._effort = EffortSensor(self.errors)
-        self._effort_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], effort)
+        e = self.errors
+        self._sensors = {  # name: (noise, (t [ns], last reading) or None)
+            "effort": [SensorNoise(e.joint_effort_noise, e.noise_seed, SensorNoise.EFFORT), None],
+            "range": [SensorNoise(e.range_noise_m, e.noise_seed, SensorNoise.RANGE), None],
+            "leg_force": [
+                SensorNoise(e.leg_force_noise_n, e.noise_seed, SensorNoise.LEG_FORCE),
+                None,
+            ],
+        }
 
     def describe(self) -> str:
         """Mode, step, gravity, ground and duration in one line (the node's start-up log)."""
@@ -312,15 +332,57 @@ class SimulatorTick:
             self._gyro_reading = (state.t_ns, self._gyro.read(state.angular_velocity_rad_s))
         return self._gyro_reading[1]
 
+    def _reading(self, sensor: str, state: SimState, truth) -> NDArray[np.float64]:
+        """One reading of ``sensor`` per simulated time (the noise drawn once)."""
+        slot = self._sensors[sensor]
+        if slot[1] is None or slot[1][0] != state.t_ns:
+            slot[1] = (state.t_ns, slot[0].read(truth()))
+        return slot[1][1]
+
     def joint_effort_reading(self, state: SimState) -> NDArray[np.float64]:
         """What the joint effort sensors read of ``state``'s true efforts (limbs [N m], tether [N]).
 
         One reading per simulated time, as :meth:`gyro_reading`; without effort noise,
         the true efforts themselves.
         """
-        if self._effort_reading is None or self._effort_reading[0] != state.t_ns:
-            self._effort_reading = (state.t_ns, self._effort.read(state.joint_effort))
-        return self._effort_reading[1]
+        return self._reading("effort", state, lambda: state.joint_effort)
+
+    def range_reading(self, state: SimState) -> NDArray[np.float64]:
+        """(2,) what the hemis' rangefinders read [m] (``splitter_model.sensors``).
+
+        The noise is added to a return, never to "no return" (+-inf).
+        """
+
+        def truth() -> NDArray[np.float64]:
+            rot = quaternion_to_matrix(state.orientation_wxyz)
+            return np.array(
+                [
+                    downward_range_m(state.mass_positions_world_m[body, 2], rot)
+                    for body in HEMI_BODY_INDEX
+                ]
+            )
+
+        reading = self._reading("range", state, truth).copy()
+        exact = truth()
+        reading[~np.isfinite(exact)] = exact[~np.isfinite(exact)]
+        reading[reading > RANGE_MAX_M] = np.inf  # what the sensor reports out of its range
+        reading[reading < RANGE_MIN_M] = -np.inf
+        return reading
+
+    def leg_force_reading(self, state: SimState) -> NDArray[np.float64]:
+        """(2, 3) what each hemi's leg load cell reads [N], base frame."""
+        rot = quaternion_to_matrix(state.orientation_wxyz)
+        return self._reading("leg_force", state, lambda: state.leg_force_n @ rot)
+
+    def readings(self, state: SimState) -> SensorReadings:
+        """Every sensor's reading of ``state`` (each once per simulated time)."""
+        return SensorReadings(
+            gyro_rad_s=self.gyro_reading(state),
+            gyro_noise_rad_s=self.errors.gyro_noise_rad_s,
+            joint_effort=self.joint_effort_reading(state),
+            ranges_m=self.range_reading(state).astype(np.float32).astype(float),
+            leg_forces_n=self.leg_force_reading(state),
+        )
 
     def publishable_state(self) -> SimState | None:
         """The state to publish now, None when it is not finite (counted)."""
