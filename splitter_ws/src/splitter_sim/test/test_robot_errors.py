@@ -37,6 +37,7 @@ CONTROL_NS = 10_000_000  # [ns]
         ({"joint_effort_noise": -0.1}, "joint_effort_noise"),
         ({"joint_effort_noise": math.nan}, "joint_effort_noise"),
         ({"range_noise_m": -0.01}, "range_noise_m"),
+        ({"command_latency_s": -0.01}, "command_latency_s"),
         ({"leg_force_noise_n": math.inf}, "leg_force_noise_n"),
         ({"noise_seed": -1}, "noise_seed"),
         ({"noise_seed": 1.5}, "noise_seed"),
@@ -104,6 +105,24 @@ def test_a_gyro_without_noise_draws_nothing_and_without_errors_is_the_true_rate(
 def _tick(errors: RobotErrors) -> SimulatorTick:
     settings = SimulatorSettings(control_period_s=CONTROL_PERIOD_S, robot_errors=errors)
     return SimulatorTick(settings.simulator(SimConfig(ground_contact=False)), settings)
+
+
+def test_a_command_reaches_the_servos_its_latency_after_its_stamp() -> None:
+    """20 ms of latency: the goal sent at 10 ms is in force at 30 ms, not before."""
+    tick = _tick(RobotErrors(command_latency_s=0.02))
+    model = tick.sim.model
+    start = joint_positions_from_radii(model, (2.8, 0.2, 0.2))
+    goal = joint_positions_from_radii(model, (2.6, 0.3, 0.3))
+    velocity = np.zeros_like(start)
+    in_force = {}
+    for _ in range(8):  # sim steps of 5 ms; commands every control period (10 ms)
+        t = tick.time_ns
+        if t % CONTROL_NS == 0:
+            tick.command_joints(t, start if t == 0 else goal, velocity)
+        tick.step()  # applies the points due at t, then steps over [t, t + 5 ms)
+        in_force[t] = tick.sim._cmd_q.copy()
+    first_goal = min(t for t, q in in_force.items() if np.array_equal(q, goal))
+    assert first_goal == 30_000_000  # [ns] stamped 10 ms, 20 ms late
 
 
 def test_a_step_command_reaches_the_servos_through_the_lag() -> None:

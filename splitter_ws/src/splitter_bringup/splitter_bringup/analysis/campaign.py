@@ -105,6 +105,7 @@ class PerturbationSpec:
     gyro_noise_rad_s: float = 0.0  # [rad/s] white noise std per axis and reading
     gyro_bias_rad_s: float = 0.0  # [rad/s] bias drawn uniform in +- this per axis
     actuator_lag_s: float = 0.0  # [s] first-order lag time constant of the joint commands
+    command_latency_s: float = 0.0  # [s] delay of every joint command to the servos
     # [N m] limbs, [N] tether: the joint effort sensors' noise, std per reading, in every
     # draw with robot errors (a sensor, not a perturbation: it does not make one)
     joint_effort_noise: float = DEFAULT_JOINT_EFFORT_NOISE
@@ -224,6 +225,7 @@ def robot_errors_for_draw(draw: Draw, spec: PerturbationSpec | None = None) -> R
         gyro_noise_rad_s=p.gyro_noise_rad_s,
         gyro_bias_rad_s=draw.gyro_bias_rad_s,
         actuator_lag_s=p.actuator_lag_s,
+        command_latency_s=p.command_latency_s,
         joint_effort_noise=p.joint_effort_noise,
         noise_seed=draw.noise_seed,
     )

@@ -69,6 +69,7 @@ DEFAULT_MASS_FRACTION = 0.1  # [-] +-10 %
 DEFAULT_GYRO_NOISE_RAD_S = 0.002  # [rad/s] per reading (100 Hz): a MEMS rate gyro
 DEFAULT_GYRO_BIAS_RAD_S = 0.005  # [rad/s] per axis, an uncalibrated MEMS turn-on bias
 DEFAULT_ACTUATOR_LAG_S = 0.05  # [s]
+DEFAULT_COMMAND_LATENCY_S = 0.02  # [s] a servo bus and a network hop
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -142,6 +143,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"(flag alone: {DEFAULT_ACTUATOR_LAG_S})",
     )
     perturb.add_argument(
+        "--command-latency",
+        type=float,
+        nargs="?",
+        const=DEFAULT_COMMAND_LATENCY_S,
+        default=0.0,
+        metavar="DELAY",
+        help="delay of every joint and tether command to the servos [s] "
+        f"(flag alone: {DEFAULT_COMMAND_LATENCY_S})",
+    )
+    perturb.add_argument(
         "--effort-noise",
         type=float,
         default=DEFAULT_JOINT_EFFORT_NOISE,
@@ -178,6 +189,7 @@ def _spec(args: argparse.Namespace) -> PerturbationSpec:
         gyro_noise_rad_s=args.imu_noise,
         gyro_bias_rad_s=args.imu_bias,
         actuator_lag_s=args.actuator_lag,
+        command_latency_s=args.command_latency,
         joint_effort_noise=args.effort_noise,
         estimator=not args.no_estimator,
     )
@@ -204,6 +216,7 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
         ("--imu-noise", args.imu_noise),
         ("--imu-bias", args.imu_bias),
         ("--actuator-lag", args.actuator_lag),
+        ("--command-latency", args.command_latency),
     ):
         if value > 0.0:
             words += [flag, repr(value)]

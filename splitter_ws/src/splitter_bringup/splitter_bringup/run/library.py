@@ -104,6 +104,7 @@ def controller_config(
         knows_robot = flies_on_estimates(scenario)
     return ControllerConfig(
         actuator_lag_s=scenario.robot_errors.actuator_lag_s if knows_robot else 0.0,
+        command_latency_s=scenario.robot_errors.command_latency_s if knows_robot else 0.0,
         enabled=c.enabled,
         weights=weights,
         mpc=mpc,

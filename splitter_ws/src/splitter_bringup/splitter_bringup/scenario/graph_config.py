@@ -65,6 +65,7 @@ def robot_aware_mpc_parameters(scenario: Scenario) -> dict:
     return {
         "estimated_masses": True,
         "actuator_lag_s": float(scenario.robot_errors.actuator_lag_s),
+        "command_latency_s": float(scenario.robot_errors.command_latency_s),
     }
 
 

@@ -78,6 +78,14 @@ class ControllerConfig:
         "ahead on the plan, so the lagging shape follows the plan on time [s] (0: none)",
         bounds=(0.0, 1.0),
     )
+    # The commands reach the actuators this late (transport and servo bus): a pure delay,
+    # added to the lead.
+    command_latency_s: float = parameter_field(  # [s]
+        0.0,
+        "the commands' latency to the actuators: each setpoint is taken this much further "
+        "ahead on the plan [s] (0: none)",
+        bounds=(0.0, 1.0),
+    )
     # Recovery (supervisory): while the body rate across the reference axis is above
     # ``recovery_enter_rate_rad_s``, the MPC is asked for a spin of at least
     # ``recovery_spin_rad_s`` about that axis (0: off), until that rate falls under
@@ -113,9 +121,10 @@ class ControllerConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-        lag = self.actuator_lag_s
-        if not (isinstance(lag, int | float) and math.isfinite(lag) and 0.0 <= lag <= 1.0):
-            raise ValueError(f"actuator_lag_s must be in [0, 1] s, got {lag!r}")
+        for name in ("actuator_lag_s", "command_latency_s"):
+            lag = getattr(self, name)
+            if not (isinstance(lag, int | float) and math.isfinite(lag) and 0.0 <= lag <= 1.0):
+                raise ValueError(f"{name} must be in [0, 1] s, got {lag!r}")
         recovery = ("recovery_spin_rad_s", "recovery_enter_rate_rad_s", "recovery_exit_rate_rad_s")
         for name in recovery:
             value = getattr(self, name)
@@ -146,8 +155,10 @@ class ControllerConfig:
                 raise ValueError(f"nominal_inertia_kg_m2 must be 3 positive numbers, got {nominal}")
 
     @property
-    def actuator_lag_ns(self) -> int:
-        return round(self.actuator_lag_s * NS_PER_S)
+    def setpoint_lead_ns(self) -> int:
+        """[ns] how far ahead of its tick each setpoint is taken on the plan: the
+        actuators' lag and the commands' latency."""
+        return round((self.actuator_lag_s + self.command_latency_s) * NS_PER_S)
 
     @property
     def replan_period_ns(self) -> int:
@@ -321,7 +332,7 @@ class MorphingController(Closable):
                 inertia.copy()
                 if self._plan is None
                 else self._plan.setpoint_at(
-                    t_ns + self.config.actuator_lag_ns, self.config.control_period_ns
+                    t_ns + self.config.setpoint_lead_ns, self.config.control_period_ns
                 )
             )
         if not np.all(np.isfinite(setpoint)):

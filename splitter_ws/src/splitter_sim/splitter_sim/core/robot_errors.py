@@ -13,6 +13,9 @@ as it really is. :class:`RobotErrors` says how that robot is wrong:
 * ``actuator_lag_s``: every joint and tether command reaches the servos through a
   first-order lag of this time constant
   (:class:`splitter_model.actuators.CommandLag`, the one actuator-lag model).
+* ``command_latency_s``: every joint and tether command reaches the servos this much
+  after its stamp (a pure delay, before the lag), the way a bus or a network delays
+  it;
 * ``joint_effort_noise``, ``range_noise_m``, ``leg_force_noise_n``: the joint
   effort sensors of ``/splitter/joint_states`` (limb torques [N m], the reel's
   tether tension [N]), the hemis' rangefinders and their legs' load cells read the
@@ -66,6 +69,12 @@ class RobotErrors:
         "(0: none) [s]",
         bounds=(0.0, 10.0),
     )
+    command_latency_s: float = parameter_field(
+        0.0,
+        "robot errors: delay between a joint command's stamp and the servos receiving it "
+        "(0: none) [s]",
+        bounds=(0.0, 1.0),
+    )
     joint_effort_noise: float = parameter_field(
         0.0,
         "robot errors: white noise of each joint effort reading, std [N m] (limbs) and "
@@ -88,6 +97,7 @@ class RobotErrors:
         for name in (
             "gyro_noise_rad_s",
             "actuator_lag_s",
+            "command_latency_s",
             "joint_effort_noise",
             "range_noise_m",
             "leg_force_noise_n",
@@ -117,6 +127,7 @@ class RobotErrors:
             or self.gyro_noise_rad_s > 0.0
             or any(self.gyro_bias_rad_s)
             or self.actuator_lag_s > 0.0
+            or self.command_latency_s > 0.0
             or self.joint_effort_noise > 0.0
             or self.range_noise_m > 0.0
             or self.leg_force_noise_n > 0.0

@@ -173,6 +173,7 @@ class SimulatorTick:
         self.errors: RobotErrors = s.robot_errors
         lag_s = self.errors.actuator_lag_s  # [s] time constant
         self._lag = CommandLag(lag_s, self.control_ns * 1e-9) if lag_s > 0.0 else None
+        self._latency_ns = round(self.errors.command_latency_s * 1e9)  # [ns]
         self._gyro = Gyro(self.errors)
         self._gyro_reading: tuple[int, NDArray[np.float64]] | None = None  # (t [ns], rate)
         e = self.errors
@@ -222,10 +223,11 @@ class SimulatorTick:
         ValueError when its contents are refused (it still answers its tick).
         """
         now = self.time_ns
+        arrives = stamp_ns + self._latency_ns  # at the servos (robot_errors.command_latency_s)
         try:
-            if stamp_ns > now:  # real time: a trajectory point ahead, followed at its stamp
+            if arrives > now:  # a trajectory point ahead (or delayed), followed at its time
                 validate_joint_command(self.sim.joint_limits, position, velocity, names.JOINT_NAMES)
-                self.queue.push(stamp_ns, (position, velocity))
+                self.queue.push(arrives, (position, velocity))
             else:
                 self.late_joint_commands += stamp_ns < now
                 self.queue.drop_from(stamp_ns)  # a later plan: the points queued are void
