@@ -368,6 +368,7 @@ class DrawResult:
     # the flight estimator's errors at the last estimate (NaN: flown without it)
     gyro_bias_error_rad_s: float = math.nan  # [rad/s] largest |b_est - b_true| per axis
     mass_ratio_error: float = math.nan  # [-] largest |r_est / r_true - 1| of m_y/m_x, m_z/m_x
+    mass_error: float = math.nan  # [-] largest |m_est / m_true - 1| of m_x, m_y, m_z
 
     @property
     def outcome(self) -> str:
@@ -388,7 +389,7 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         deadline_misses=misses,
     )
     w_end = series.angular_velocity_rad_s[-1] if n else (math.nan,) * 3
-    bias_error, ratio_error = estimator_errors(
+    bias_error, ratio_error, mass_error = estimator_errors(
         series, RobotErrors(mass_scale=draw.mass_scale, gyro_bias_rad_s=draw.gyro_bias_rad_s)
     )
     return DrawResult(
@@ -403,6 +404,7 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         wall_time_s=wall_time_s,
         gyro_bias_error_rad_s=bias_error,
         mass_ratio_error=ratio_error,
+        mass_error=mass_error,
     )
 
 
@@ -451,6 +453,7 @@ class CampaignSummary:
     # the flight estimator's errors over the draws that had one (NaN: none had)
     gyro_bias_error_p95_rad_s: float = math.nan  # [rad/s]
     mass_ratio_error_p95: float = math.nan  # [-]
+    mass_error_p95: float = math.nan  # [-]
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -467,6 +470,7 @@ class CampaignSummary:
             "draw_wall_time_s": _json_number(self.draw_wall_time_s),
             "gyro_bias_error_p95_rad_s": _json_number(self.gyro_bias_error_p95_rad_s),
             "mass_ratio_error_p95": _json_number(self.mass_ratio_error_p95),
+            "mass_error_p95": _json_number(self.mass_error_p95),
             **dict(self.extra),
         }
 
@@ -496,6 +500,9 @@ def summarize(results: Sequence[DrawResult]) -> CampaignSummary:
         ),
         mass_ratio_error_p95=_percentile(
             [r.mass_ratio_error for r in results if math.isfinite(r.mass_ratio_error)], 95.0
+        ),
+        mass_error_p95=_percentile(
+            [r.mass_error for r in results if math.isfinite(r.mass_error)], 95.0
         ),
     )
 
@@ -580,6 +587,7 @@ CSV_COLUMNS = (
     "error",
     "gyro_bias_error_rad_s",
     "mass_ratio_error",
+    "mass_error",
 )
 
 
@@ -609,6 +617,7 @@ def csv_row(result: DrawResult) -> dict[str, Any]:
                 result.error,
                 _csv_number(result.gyro_bias_error_rad_s),
                 _csv_number(result.mass_ratio_error),
+                _csv_number(result.mass_error),
             ),
             strict=True,
         )

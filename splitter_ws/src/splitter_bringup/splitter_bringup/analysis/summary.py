@@ -39,32 +39,36 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
     return metrics
 
 
-def estimator_errors(series: RunSeries, errors: RobotErrors) -> tuple[float, float]:
-    """(largest gyro bias error [rad/s], largest relative mass-ratio error [-]).
+def estimator_errors(series: RunSeries, errors: RobotErrors) -> tuple[float, float, float]:
+    """(largest gyro bias error [rad/s], largest relative mass-ratio error [-], largest
+    relative mass error [-]).
 
     The flight estimator's estimate at the last tick the controllers acted on (a
     graph's estimator also answers the final state, which its bag may or may not
     hold) against the simulated robot's ``errors``; NaN without an estimator.
     """
     if "estimate_gyro_bias_rad_s" not in series.extras or len(series) == 0:
-        return math.nan, math.nan
+        return math.nan, math.nan, math.nan
     acted = np.flatnonzero(series.extras["estimate_t_s"] <= series.t_s[-1] - LAST_TICK_S)
     if acted.size == 0:
-        return math.nan, math.nan
+        return math.nan, math.nan, math.nan
     k = int(acted[-1])
     plant = errors.plant_model(RobotModel())
     bias = np.asarray(series.extras["estimate_gyro_bias_rad_s"][k], dtype=float)
     ratios = np.asarray(series.extras["estimate_mass_ratios"][k], dtype=float)
-    true_ratios = np.array([plant.limb_mass_y_kg, plant.limb_mass_z_kg]) / plant.body_mass_kg
+    masses = np.asarray(series.extras["estimate_masses_kg"][k], dtype=float)
+    true_masses = np.array([plant.body_mass_kg, plant.limb_mass_y_kg, plant.limb_mass_z_kg])
+    true_ratios = true_masses[1:] / true_masses[0]
     return (
         float(np.max(np.abs(bias - np.asarray(errors.gyro_bias_rad_s)))),
         float(np.max(np.abs(ratios / true_ratios - 1.0))),
+        float(np.max(np.abs(masses / true_masses - 1.0))),
     )
 
 
 def estimator_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
     """The flight estimator's errors (:func:`estimator_errors`) as summary figures."""
-    bias_error, ratio_error = estimator_errors(series, scenario.robot_errors)
+    bias_error, ratio_error, mass_error = estimator_errors(series, scenario.robot_errors)
     return {
         "estimator_gyro_bias_error_rad_s": Metric(
             bias_error,
@@ -75,6 +79,11 @@ def estimator_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric
             ratio_error,
             "-",
             "largest relative error of the estimated m_y/m_x, m_z/m_x at the last control tick",
+        ),
+        "estimator_mass_error": Metric(
+            mass_error,
+            "-",
+            "largest relative error of the estimated m_x, m_y, m_z at the last control tick",
         ),
     }
 

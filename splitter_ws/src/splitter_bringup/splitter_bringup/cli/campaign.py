@@ -249,10 +249,11 @@ def _print_summary(summary: dict[str, Any], title: str) -> None:
     if med is not None:
         print(f"  settling time median {med:.2f} s, p90 {p90:.2f} s")
     bias, ratio = summary.get("gyro_bias_error_p95_rad_s"), summary.get("mass_ratio_error_p95")
+    mass = summary.get("mass_error_p95")
     if bias is not None:
         print(
             f"  estimator at the end, p95 over draws: gyro bias error {bias:.5f} rad/s, "
-            f"mass ratio error {100 * ratio:.2f} %"
+            f"mass ratio error {100 * ratio:.2f} %, mass error {100 * (mass or 0.0):.2f} %"
         )
     print(f"  wall time {summary['wall_time_s']:.1f} s")
 

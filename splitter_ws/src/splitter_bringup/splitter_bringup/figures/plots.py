@@ -289,7 +289,7 @@ def plot_gait(
 
 
 def plot_estimator(series: RunSeries, errors: RobotErrors, path: Path, title: str = "") -> Path:
-    """The flight estimator against the simulated robot: gyro bias, mass ratios, rate error.
+    """The flight estimator against the simulated robot: gyro bias, masses, rate error.
 
     Estimates solid, the simulated robot's values dashed in the same colour.
     """
@@ -303,11 +303,11 @@ def plot_estimator(series: RunSeries, errors: RobotErrors, path: Path, title: st
         ax.axhline(1e3 * errors.gyro_bias_rad_s[i], ls="--", color=line.get_color(), alpha=0.7)
     ax.set_ylabel("gyro bias [mrad/s]")
     ax = axes[1]
-    true = (plant.limb_mass_y_kg / plant.body_mass_kg, plant.limb_mass_z_kg / plant.body_mass_kg)
-    for i, label in enumerate(("$m_y/m_x$", "$m_z/m_x$")):
-        (line,) = ax.plot(t, extras["estimate_mass_ratios"][:, i], label=label)
+    true = (plant.body_mass_kg, plant.limb_mass_y_kg, plant.limb_mass_z_kg)
+    for i, label in enumerate(("$m_x$", "$m_y$", "$m_z$")):
+        (line,) = ax.plot(t, extras["estimate_masses_kg"][:, i], label=label)
         ax.axhline(true[i], ls="--", color=line.get_color(), alpha=0.7)
-    ax.set_ylabel("mass ratio [-]")
+    ax.set_ylabel("lumped masses [kg]")
     ax = axes[2]
     w_true = np.stack(
         [np.interp(t, series.t_s, series.angular_velocity_rad_s[:, i]) for i in range(3)], axis=1

@@ -5,11 +5,11 @@ protocol (docs/ARCHITECTURE.md), so that this loop and the node graph agree by
 construction, not by care: each node converts messages to and from the same
 object's calls. For each simulator step at time ``t`` (5 ms):
 
-1. the simulator's state at ``t`` (``SimulatorTick.state``: what the simulator node
-   publishes: imu, inertia, odom, contact wrenches, joint_states);
+1. the simulator's state at ``t`` (``SimulatorTick.state``, and ``SimulatorTick.readings``:
+   what the robot's sensors read, as the simulator node publishes them);
 2. on a control tick (``t % 10 ms == 0``):
-   a. gait phase manager: ``GaitTick.on_state`` with odom, the contact forces, the
-      tether length and the measured principal inertia; its phase, attitude
+   a. gait phase manager: ``GaitTick.on_sensors`` with the IMU, the rangefinders, the leg
+      load cells, the tether length and the principal inertia; its phase, attitude
       reference and answer go to ``MpcTick`` as the latched topics and the jump
       command would; its jump wrench to ``SimulatorTick.command_jump``;
    b. MPC: ``MpcTick.on_state(t, w, q, I)`` -> setpoint stamped t;
