@@ -17,6 +17,7 @@ lies on ``u`` at distance ``limb_reach_m(knee)``: the paper's radius r_y or r_z.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -47,6 +48,35 @@ def limb_frame(limb_index: int) -> NDArray[np.float64]:
     return np.stack([u, v, np.cross(u, v)])
 
 
+@dataclass(frozen=True)
+class _LimbPlane:
+    """A limb's pose in its bending plane: tip along ``u`` and along the rotated ``v``."""
+
+    p_u: float  # [m] tip along u
+    p_plane: float  # [m] tip along v_rot
+    u: NDArray[np.float64]
+    v_rot: NDArray[np.float64]  # v turned about u by the hip abduction
+    d_v_rot: NDArray[np.float64]  # d(v_rot)/d(hip abduction)
+    knee_u: float  # [m] the shank's part of p_u
+    knee_plane: float  # [m] the shank's part of p_plane
+
+
+def _limb_plane(model: RobotModel, limb_index: int, joint_angles_rad: ArrayLike) -> _LimbPlane:
+    q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    knee_u, knee_plane = l2 * math.cos(q2 + q3), l2 * math.sin(q2 + q3)
+    u, v, w = limb_frame(limb_index)
+    return _LimbPlane(
+        p_u=l1 * math.cos(q2) + knee_u,
+        p_plane=l1 * math.sin(q2) + knee_plane,
+        u=u,
+        v_rot=math.cos(q1) * v + math.sin(q1) * w,
+        d_v_rot=-math.sin(q1) * v + math.cos(q1) * w,
+        knee_u=knee_u,
+        knee_plane=knee_plane,
+    )
+
+
 def limb_forward_kinematics(
     model: RobotModel, limb_index: int, joint_angles_rad: ArrayLike
 ) -> NDArray[np.float64]:
@@ -54,13 +84,8 @@ def limb_forward_kinematics(
 
     ``joint_angles_rad`` is (hip_abduction, hip_pitch, knee).
     """
-    q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
-    l1, l2 = model.thigh_length_m, model.shank_length_m
-    p_u = l1 * math.cos(q2) + l2 * math.cos(q2 + q3)
-    p_plane = l1 * math.sin(q2) + l2 * math.sin(q2 + q3)
-    u, v, w = limb_frame(limb_index)
-    v_rot = math.cos(q1) * v + math.sin(q1) * w
-    return p_u * u + p_plane * v_rot
+    plane = _limb_plane(model, limb_index, joint_angles_rad)
+    return plane.p_u * plane.u + plane.p_plane * plane.v_rot
 
 
 def limb_jacobian(
@@ -72,16 +97,10 @@ def limb_jacobian(
     is ``J qd`` and, the links being massless, the joint torques that hold a force
     ``F`` [N] on the tip's lumped mass are ``J^T F`` [N m] (virtual work).
     """
-    q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
-    l1, l2 = model.thigh_length_m, model.shank_length_m
-    p_u = l1 * math.cos(q2) + l2 * math.cos(q2 + q3)
-    p_plane = l1 * math.sin(q2) + l2 * math.sin(q2 + q3)
-    u, v, w = limb_frame(limb_index)
-    v_rot = math.cos(q1) * v + math.sin(q1) * w
-    d_v_rot = -math.sin(q1) * v + math.cos(q1) * w
-    d_knee = -l2 * math.sin(q2 + q3) * u + l2 * math.cos(q2 + q3) * v_rot
-    d_pitch = -p_plane * u + p_u * v_rot
-    return np.stack([p_plane * d_v_rot, d_pitch, d_knee], axis=1)
+    p = _limb_plane(model, limb_index, joint_angles_rad)
+    d_knee = -p.knee_plane * p.u + p.knee_u * p.v_rot
+    d_pitch = -p.p_plane * p.u + p.p_u * p.v_rot
+    return np.stack([p.p_plane * p.d_v_rot, d_pitch, d_knee], axis=1)
 
 
 def limb_joint_torques(
