@@ -67,7 +67,8 @@ def test_the_controllers_read_estimates_not_ground_truth(node_name: str) -> None
         expected = {names.IMU, *names.RANGES, *names.LEG_FORCES, names.JOINT_STATES}
         assert topics - {names.CLOCK} == expected
     elif node_name == ESTIMATOR_NODE:
-        assert topics - {names.CLOCK} == {names.IMU, names.JOINT_STATES}  # gyro, joint sensors
+        # the gyro, the joint sensors, the legs' load cells (on the ground or not)
+        assert topics - {names.CLOCK} == {names.IMU, names.JOINT_STATES, *names.LEG_FORCES}
     else:
         assert {names.ESTIMATE_IMU, names.ESTIMATE_INERTIA} <= topics
 

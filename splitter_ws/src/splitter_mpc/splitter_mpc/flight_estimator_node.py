@@ -2,12 +2,12 @@
 
 ROS plumbing over :class:`splitter_mpc.core.estimator_tick.EstimatorTick` (the
 library loop drives the same object). Lockstep: once it holds ``/splitter/imu``
-(the rate gyro, with the robot's bias and noise) and ``/splitter/joint_states``
-(the encoders) stamped with the same control tick ``t``, it publishes, stamped
-``t`` and in this order:
+(the rate gyro, with the robot's bias and noise), ``/splitter/joint_states`` (the
+encoders and the joint efforts) and both ``/splitter/hemi_*/leg_force`` (on the
+ground the flight model does not hold) stamped with the same control tick ``t``, it
+publishes, stamped ``t`` and in this order:
 
-* ``/splitter/estimate/masses`` (geometry_msgs/Vector3Stamped: m_x, m_y, m_z [kg]:
-  the nominal m_x, the estimated ratios; a common scale is not observable),
+* ``/splitter/estimate/masses`` (geometry_msgs/Vector3Stamped: m_x, m_y, m_z [kg]),
 * ``/splitter/estimate/gyro_bias`` (geometry_msgs/Vector3Stamped [rad/s], base),
 * ``/splitter/estimate/inertia`` (geometry_msgs/Vector3Stamped: the estimated
   model's principal moments at the encoders' radii [kg m^2], base),
@@ -26,14 +26,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState
 
 from splitter_model.model import RobotModel
 from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
 from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample, JointReading
+from splitter_mpc.core.gait_tick import MAX_LEG_FORCE_N
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MessageValidationError,
@@ -41,6 +43,7 @@ from splitter_msgs_py.conversions import (
     imu_to_msg,
     joint_state_from_msg,
     vector3_to_msg,
+    wrench_from_msg,
 )
 from splitter_msgs_py.core.parameter_fields import PERIOD_S, parameter_field
 from splitter_msgs_py.node_pattern import admitted_stamp, default_sim_time, run_node
@@ -79,7 +82,9 @@ def _read_gyro(msg: Imu) -> GyroSample:
             f"header.frame_id: expected {names.BASE_FRAME!r}, got {msg.header.frame_id!r}"
         )
     sample = imu_from_msg(msg)
-    return GyroSample(sample.angular_velocity_rad_s, sample.orientation_wxyz)
+    return GyroSample(
+        sample.angular_velocity_rad_s, sample.orientation_wxyz, sample.linear_acceleration_m_s2
+    )
 
 
 def _read_joints(msg: JointState) -> JointReading:
@@ -87,7 +92,25 @@ def _read_joints(msg: JointState) -> JointReading:
     return JointReading(sample.position, sample.velocity, sample.effort)
 
 
-READERS = {names.IMU: (Imu, _read_gyro), names.JOINT_STATES: (JointState, _read_joints)}
+def _read_leg_force(msg: WrenchStamped) -> np.ndarray:
+    sample = wrench_from_msg(msg)
+    if sample.frame_id != names.BASE_FRAME:
+        raise MessageValidationError(
+            f"header.frame_id: expected {names.BASE_FRAME!r}, got {sample.frame_id!r}"
+        )
+    if float(np.abs(sample.force_n).max()) > MAX_LEG_FORCE_N:
+        raise MessageValidationError(
+            f"wrench.force: {sample.force_n.tolist()} beyond +-{MAX_LEG_FORCE_N:g} N"
+        )
+    return sample.force_n
+
+
+READERS = {
+    names.IMU: (Imu, _read_gyro),
+    names.JOINT_STATES: (JointState, _read_joints),
+    names.LEG_FORCE_A: (WrenchStamped, _read_leg_force),
+    names.LEG_FORCE_B: (WrenchStamped, _read_leg_force),
+}
 
 
 def estimate_values(estimate: FlightEstimate) -> dict[str, float]:

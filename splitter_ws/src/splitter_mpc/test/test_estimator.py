@@ -134,3 +134,32 @@ def test_effort_model_of_a_steady_spin_is_the_centripetal_load() -> None:
         np.testing.assert_allclose(
             effort[limb_joints(limb)], limb_jacobian(model, limb, q).T @ force, atol=1e-12
         )
+
+
+@pytest.mark.parametrize(
+    ("rate", "leg_force_n"),
+    [((0.0, 0.9, 0.3), 15.0), ((0.0, 0.01, 0.0), 0.0)],
+    ids=["stance", "no spin"],
+)
+def test_efforts_weigh_nothing_on_the_ground_or_without_a_spin(rate, leg_force_n) -> None:
+    """On its legs (a load cell above the threshold) the flight model does not hold; without
+    a spin the efforts carry no centripetal load: efforts far from any mass model then
+    leave the masses (and, on the ground, the bias) where they were."""
+    from splitter_model.kinematics import joint_positions_from_radii
+    from splitter_mpc.core.estimator import JointReading
+    from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample
+
+    model = RobotModel()
+    tick = EstimatorTick(model)
+    joints = JointReading(
+        joint_positions_from_radii(model, (2.0, 0.3, 0.2)), np.zeros(25), np.full(25, 5.0)
+    )
+    legs = np.array([[0.0, 0.0, leg_force_n]] * 2)
+    gyro = GyroSample(np.asarray(rate), np.array([1.0, 0.0, 0.0, 0.0]))
+    first = tick.on_sensors(0, gyro, joints, legs)
+    for k in range(1, 30):
+        last = tick.on_sensors(k * 10_000_000, gyro, joints, legs)
+    assert tick.estimator.effort_updates == 0
+    np.testing.assert_array_equal(last.masses_kg, first.masses_kg)
+    if leg_force_n > 0.0:  # the rate follows the gyro; the bias barely moves (1e-6 rad/s)
+        np.testing.assert_allclose(last.gyro_bias_rad_s, first.gyro_bias_rad_s, atol=1e-6)

@@ -189,7 +189,12 @@ def run_closed_loop(
                 joints = JointReading(
                     state.joint_position, state.joint_velocity, readings.joint_effort
                 )
-                estimate = flight.on_sensors(t, GyroSample(gyro, q_measured), joints)
+                estimate = flight.on_sensors(
+                    t,
+                    GyroSample(gyro, q_measured, state.linear_acceleration_m_s2),
+                    joints,
+                    readings.leg_forces_n,
+                )
                 estimates.append(estimate)
                 rate = estimate.angular_velocity_rad_s
                 attitude = received_quaternion(estimate.orientation_wxyz, hops=1)

@@ -29,7 +29,9 @@ Updates:
   ``a = w' x r + w x (w x r) + 2 w x v + a_rel``, and the reel holds hemi a's five
   masses, ``T = -sum m a_x``. Positions and velocities come from the encoders,
   ``a_rel`` from a central difference of the velocities (hence the tick of delay),
-  ``w`` from the estimate and ``w'`` from Euler's equations. Linear in the masses:
+  ``w`` from the estimate and ``w'`` from Euler's equations; the accelerometer's
+  specific force (drag, anything but gravity on the centre of mass) adds to every
+  mass's acceleration. Linear in the masses:
   they, the common scale included, are observable whenever the robot spins.
 
 Contact (ground forces and torques) breaks both models: :meth:`FlightEstimator.update`
@@ -106,6 +108,18 @@ class EstimatorConfig:
         "(central difference of the encoders) stays below this: the servos' acceleration "
         "within a tick is not seen by the encoders [m/s^2]",
         bounds=_POSITIVE,
+    )
+    stance_force_threshold_n: float = parameter_field(
+        2.0,
+        "a hemi whose legs push harder than this is on the ground: no flight model [N]",
+        bounds=(1e-3, 1e4),
+    )
+    effort_min_rate_rad_s: float = parameter_field(
+        0.05,
+        "use the efforts only while the body turns at least this fast: without a spin no "
+        "centripetal load weighs the masses and the efforts are the servos' accelerations, "
+        "which the encoders do not resolve [rad/s]",
+        bounds=(0.0, 100.0),
     )
     use_joint_effort: bool = parameter_field(
         True, "update the masses from the joint efforts (when the joint states carry them)"
@@ -243,7 +257,9 @@ def effort_coefficients(
 
     A limb joint's torque is ``J^T m a`` of its mass, the tether's tension
     ``-sum m a_x`` over hemi a; ``a`` the mass's acceleration relative to the centre
-    of mass (module docstring). Free fall: gravity acts on every mass alike.
+    of mass (module docstring) plus, in ``relative_acceleration_m_s2``, the
+    accelerometer's specific force (what accelerates the centre of mass besides
+    gravity, which acts on every mass alike).
     """
     w = np.asarray(w_rad_s, dtype=float)
     w_dot = np.asarray(w_dot_rad_s2, dtype=float)
@@ -273,6 +289,7 @@ class _Tick:
     motion: _MassMotion
     radii: NDArray[np.float64]
     w: NDArray[np.float64]
+    specific_force: NDArray[np.float64]  # (3,) body [m/s^2], the accelerometer's
 
 
 class FlightEstimator:
@@ -319,6 +336,7 @@ class FlightEstimator:
         *,
         in_flight: bool = True,
         joints: JointReading | None = None,
+        specific_force_m_s2: ArrayLike = (0.0, 0.0, 0.0),
     ) -> FlightEstimate:
         """Predict to ``t_ns`` with the encoders' radii, then correct with the gyro and,
         with ``joints`` carrying efforts, the masses with the previous tick's efforts."""
@@ -343,6 +361,7 @@ class FlightEstimator:
             if not in_flight:  # a contact torque: follow the gyro, keep bias and masses
                 f[THETA, :] = 0.0
                 f[THETA, THETA] = np.eye(3)
+                f[W, THETA] = 0.0  # the rate owes the masses nothing: no flight model
                 q_proc[W, W] += np.eye(3) * 1e2 * dt
             self._x = x_next
             self._p = f @ self._p @ f.T + q_proc
@@ -358,7 +377,8 @@ class FlightEstimator:
             self._ticks.clear()
         else:
             motion = mass_motion(self.nominal, joints)
-            self._ticks.append(_Tick(int(t_ns), joints, motion, radii, self._x[W].copy()))
+            force = np.asarray(specific_force_m_s2, dtype=float)
+            self._ticks.append(_Tick(int(t_ns), joints, motion, radii, self._x[W].copy(), force))
             if c.use_joint_effort and len(self._ticks) == 3:
                 self._effort_update(*self._ticks)
         return self.estimate()
@@ -387,6 +407,8 @@ class FlightEstimator:
         c = self.config
         if np.abs(relative_acceleration).max() > c.effort_max_acceleration_m_s2:
             return  # the limbs accelerate: the encoders do not see how within the tick
+        if float(np.linalg.norm(tick.w)) < c.effort_min_rate_rad_s:
+            return  # no spin: nothing weighs the masses
         masses = nominal_masses(self.nominal) * np.exp(self._x[THETA])
         model = replace(
             self.nominal,
@@ -400,7 +422,9 @@ class FlightEstimator:
         ) / span_s
         w = tick.w
         w_dot = (-np.cross(w, inertia * w) - inertia_dot * w) / inertia
-        coefficients = effort_coefficients(tick.motion, relative_acceleration, w, w_dot)
+        coefficients = effort_coefficients(
+            tick.motion, relative_acceleration + tick.specific_force, w, w_dot
+        )
         predicted = coefficients @ masses
         rows = np.flatnonzero(np.abs(coefficients).sum(axis=1) > 0.0)
         h = np.zeros((rows.size, NX))

@@ -8,7 +8,9 @@ with the same values, in the same order, so both estimate the same numbers.
   ``/splitter/imu`` message: its angular velocity; the orientation of the first one
   is the attitude the robot knows at release, from then on integrated) and the joint
   sensors (``/splitter/joint_states``: positions, turned into the radii with the
-  nominal model's kinematics; velocities and efforts, which weigh the masses).
+  nominal model's kinematics; velocities and efforts, which weigh the masses) and the
+  legs' load cells (``/splitter/hemi_*/leg_force``: on the ground the flight model does
+  not hold, so bias and masses are held and the rate follows the gyro).
   Joined by a
   :class:`~splitter_mpc.core.tick_inputs.TickAssembler`.
 * The answer of tick ``t``: the :class:`~splitter_mpc.core.estimator.FlightEstimate`
@@ -17,10 +19,10 @@ with the same values, in the same order, so both estimate the same numbers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.kinematics import radii_from_joint_positions
 from splitter_model.model import RobotModel
@@ -34,7 +36,7 @@ from splitter_mpc.core.tick_inputs import TickAssembler
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import StampGate
 
-TICK_INPUTS = (names.IMU, names.JOINT_STATES)
+TICK_INPUTS = (names.IMU, names.JOINT_STATES, *names.LEG_FORCES)
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,8 @@ class GyroSample:
 
     angular_velocity_rad_s: NDArray[np.float64]  # (3,) body [rad/s], biased and noisy
     orientation_wxyz: NDArray[np.float64]  # (4,) used once: the attitude at release
+    # (3,) body [m/s^2]: the accelerometer (what pushes the centre of mass besides gravity)
+    specific_force_m_s2: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
 
 class EstimatorTick:
@@ -73,16 +77,38 @@ class EstimatorTick:
         t, inputs = events.completed
         samples = self.ticks.samples(inputs)
         gyro, joints = samples[names.IMU], samples[names.JOINT_STATES]
-        if gyro is None or joints is None:  # nothing good yet: no estimate
+        legs = [samples[topic] for topic in names.LEG_FORCES]
+        if gyro is None or joints is None or any(f is None for f in legs):  # nothing good yet
             return None
-        return self.on_sensors(t, gyro, joints)  # type: ignore[arg-type]
+        return self.on_sensors(t, gyro, joints, legs)  # type: ignore[arg-type]
 
-    def on_sensors(self, t_ns: int, gyro: GyroSample, joints: JointReading) -> FlightEstimate:
-        """Tick ``t_ns`` from plain values: the estimate after this gyro and joint reading."""
+    def on_sensors(
+        self,
+        t_ns: int,
+        gyro: GyroSample,
+        joints: JointReading,
+        leg_forces_n: ArrayLike | None = None,
+    ) -> FlightEstimate:
+        """Tick ``t_ns`` from plain values: the estimate after this gyro, joint reading and
+        leg load cells ((2, 3) [N]; a hemi whose legs push harder than the estimator's
+        ``stance_force_threshold_n`` is on the ground: no flight model then)."""
         radii = radii_from_joint_positions(self.model, joints.position)
+        in_flight = leg_forces_n is None or bool(
+            np.all(
+                np.linalg.norm(np.asarray(leg_forces_n, dtype=float).reshape(2, 3), axis=1)
+                <= self.estimator.config.stance_force_threshold_n
+            )
+        )
         if not self.estimator.started:
             self.estimator.start(t_ns, gyro.angular_velocity_rad_s, radii, gyro.orientation_wxyz)
-        self.last = self.estimator.update(t_ns, gyro.angular_velocity_rad_s, radii, joints=joints)
+        self.last = self.estimator.update(
+            t_ns,
+            gyro.angular_velocity_rad_s,
+            radii,
+            joints=joints,
+            in_flight=in_flight,
+            specific_force_m_s2=gyro.specific_force_m_s2,
+        )
         return self.last
 
     def estimated_model(self) -> RobotModel:
