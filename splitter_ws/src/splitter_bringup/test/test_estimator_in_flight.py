@@ -60,3 +60,18 @@ def test_a_common_mass_scale_is_weighed_only_by_the_joint_efforts(
     else:  # the gyro sees ratios, not the scale: it stays the prior's, 10 % light
         scale = float(np.exp(np.mean(np.log(masses / nominal))))
         assert scale == pytest.approx(1.0, abs=0.03)
+
+
+def test_the_jumping_robot_with_errors_lands_on_its_own_sensors() -> None:
+    """lunar_jumping_robot_errors: the gait reads the IMU, rangefinders and leg load
+    cells, the MPC the estimator. Two jumps, LANDED, the legs within the limbs' 196 N.
+    No spin weighs the masses and on the ground the flight model does not hold: the
+    estimator keeps its prior (the nominal masses) instead of drifting (it drifted to
+    -64 % when it took the reel's efforts in a flight without spin)."""
+    scenario = load_scenario("lunar_jumping_robot_errors", "mpc")
+    series = run_closed_loop(scenario)
+    assert series.gait_phase[-1] == "LANDED"
+    assert float(np.linalg.norm(series.extras["contact_force_n"], axis=2).max()) <= 196.133
+    masses = series.extras["estimate_masses_kg"]
+    nominal = nominal_masses(RobotModel())
+    np.testing.assert_allclose(masses[-1], nominal, rtol=0.01)
