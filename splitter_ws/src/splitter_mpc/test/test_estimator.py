@@ -163,32 +163,3 @@ def test_efforts_weigh_nothing_on_the_ground_or_without_a_spin(rate, leg_force_n
     np.testing.assert_array_equal(last.masses_kg, first.masses_kg)
     if leg_force_n > 0.0:  # the rate follows the gyro; the bias barely moves (1e-6 rad/s)
         np.testing.assert_allclose(last.gyro_bias_rad_s, first.gyro_bias_rad_s, atol=1e-6)
-
-
-def test_an_effort_reading_far_from_any_mass_model_is_an_outlier() -> None:
-    """Spinning at 1 rad/s with the shape held, the efforts weigh the masses; one tick
-    whose efforts are 20 times too large (a saturated reel, a servo's spike) is refused
-    by the innovation gate instead of sending the masses to a few percent of nominal."""
-    from splitter_model.kinematics import joint_positions_from_radii
-    from splitter_mpc.core.estimator import (
-        JointReading,
-        effort_coefficients,
-        mass_motion,
-        nominal_masses,
-    )
-    from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample
-
-    model = RobotModel()
-    q = joint_positions_from_radii(model, (2.0, 0.3, 0.2))
-    w = np.array([0.0, 1.0, 0.0])
-    motion = mass_motion(model, JointReading(q))
-    effort = effort_coefficients(motion, np.zeros((10, 3)), w, np.zeros(3)) @ nominal_masses(model)
-    tick = EstimatorTick(model)
-    gyro = GyroSample(w, np.array([1.0, 0.0, 0.0, 0.0]))
-    legs = np.zeros((2, 3))
-    for k in range(12):
-        reading = 20.0 * effort if k == 6 else effort
-        last = tick.on_sensors(k * 10_000_000, gyro, JointReading(q, np.zeros(25), reading), legs)
-    assert tick.estimator.effort_outliers == 1
-    assert tick.estimator.effort_updates == 9  # ticks 1..10 (one tick late), one refused
-    np.testing.assert_allclose(last.masses_kg, nominal_masses(model), rtol=1e-3)
