@@ -47,7 +47,6 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import chi2
 
 from splitter_model.joints import (
     LIMB_HEMI_SIGNS,
@@ -121,13 +120,6 @@ class EstimatorConfig:
         "centripetal load weighs the masses and the efforts are the servos' accelerations, "
         "which the encoders do not resolve [rad/s]",
         bounds=(0.0, 100.0),
-    )
-    effort_gate_probability: float = parameter_field(
-        0.9999,
-        "innovation gate of the effort update: a tick's efforts whose normalised innovation "
-        "squared exceeds the chi-square quantile of this probability are an outlier (the "
-        "servos' acceleration within the tick, a saturated reel), not a measurement [-]",
-        bounds=(0.5, 1.0 - 1e-12),
     )
     use_joint_effort: bool = parameter_field(
         True, "update the masses from the joint efforts (when the joint states carry them)"
@@ -314,7 +306,6 @@ class FlightEstimator:
         self._q = np.array([1.0, 0.0, 0.0, 0.0])
         self._ticks: deque[_Tick] = deque(maxlen=3)
         self.effort_updates = 0
-        self.effort_outliers = 0  # effort readings refused by the innovation gate
 
     @property
     def started(self) -> bool:
@@ -392,31 +383,15 @@ class FlightEstimator:
                 self._effort_update(*self._ticks)
         return self.estimate()
 
-    def _correct(
-        self,
-        h: NDArray[np.float64],
-        innovation,
-        variances,
-        gate_probability: float | None = None,
-    ) -> bool:
-        """Kalman update with the measurement Jacobian ``h`` and diagonal noise (Joseph form).
-
-        With ``gate_probability``, a measurement whose normalised innovation squared
-        exceeds the chi-square quantile of that probability (as many degrees of freedom
-        as rows) is an outlier: no update, False.
-        """
+    def _correct(self, h: NDArray[np.float64], innovation, variances) -> None:
+        """Kalman update with the measurement Jacobian ``h`` and diagonal noise (Joseph form)."""
         r = np.diag(np.asarray(variances, dtype=float))
         s = h @ self._p @ h.T + r
-        if gate_probability is not None:
-            nis = float(innovation @ np.linalg.solve(s, innovation))
-            if nis > chi2.ppf(gate_probability, len(innovation)):
-                return False
         k = np.linalg.solve(s, h @ self._p).T
         self._x = self._x + k @ innovation
         i_kh = np.eye(NX) - k @ h
         self._p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
         self._p = 0.5 * (self._p + self._p.T)
-        return True
 
     def _effort_update(self, before: _Tick, tick: _Tick, after: _Tick) -> None:
         """Correct the masses with ``tick``'s efforts (central differences around it)."""
@@ -455,11 +430,8 @@ class FlightEstimator:
         h = np.zeros((rows.size, NX))
         h[:, THETA] = coefficients[rows] * masses  # d(effort)/d ln(m)
         variances = c.joint_effort_noise**2 + (c.effort_model_error * predicted[rows]) ** 2
-        innovation = np.asarray(effort, dtype=float)[rows] - predicted[rows]
-        if self._correct(h, innovation, variances, c.effort_gate_probability):
-            self.effort_updates += 1
-        else:
-            self.effort_outliers += 1
+        self._correct(h, np.asarray(effort, dtype=float)[rows] - predicted[rows], variances)
+        self.effort_updates += 1
 
     def _integrate_attitude(self, w: NDArray[np.float64], dt: float) -> None:
         angle = float(np.linalg.norm(w)) * dt
