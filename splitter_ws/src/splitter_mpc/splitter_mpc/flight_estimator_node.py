@@ -123,6 +123,7 @@ def estimate_values(estimate: FlightEstimate) -> dict[str, float]:
         values[f"mass_{axis}_kg"] = float(m)
     values["mass_ratio_y_x"] = float(estimate.mass_ratios[0])
     values["mass_ratio_z_x"] = float(estimate.mass_ratios[1])
+    values["effort_updates"] = float(estimate.effort_updates)  # ticks whose efforts weighed
     return values
 
 
