@@ -355,17 +355,14 @@ class SimulatorTick:
         The noise is added to a return, never to "no return" (+-inf).
         """
 
-        def truth() -> NDArray[np.float64]:
-            rot = quaternion_to_matrix(state.orientation_wxyz)
-            return np.array(
-                [
-                    downward_range_m(state.mass_positions_world_m[body, 2], rot)
-                    for body in HEMI_BODY_INDEX
-                ]
-            )
-
-        reading = self._reading("range", state, truth).copy()
-        exact = truth()
+        rot = quaternion_to_matrix(state.orientation_wxyz)
+        exact = np.array(
+            [
+                downward_range_m(state.mass_positions_world_m[body, 2], rot)
+                for body in HEMI_BODY_INDEX
+            ]
+        )
+        reading = self._reading("range", state, lambda: exact).copy()
         reading[~np.isfinite(exact)] = exact[~np.isfinite(exact)]
         reading[reading > RANGE_MAX_M] = np.inf  # what the sensor reports out of its range
         reading[reading < RANGE_MIN_M] = -np.inf
