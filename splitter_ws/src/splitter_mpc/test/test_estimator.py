@@ -163,3 +163,46 @@ def test_efforts_weigh_nothing_on_the_ground_or_without_a_spin(rate, leg_force_n
     np.testing.assert_array_equal(last.masses_kg, first.masses_kg)
     if leg_force_n > 0.0:  # the rate follows the gyro; the bias barely moves (1e-6 rad/s)
         np.testing.assert_allclose(last.gyro_bias_rad_s, first.gyro_bias_rad_s, atol=1e-6)
+
+
+def test_a_servo_swinging_about_its_setpoint_weighs_nothing() -> None:
+    """The reel at 1.3 m/s swings about its setpoint: its encoder velocity zig-zags, so the
+    central difference around a tick cancels while the servo accelerates hard at it, and
+    its tension (25 N, -11 N, ...) is the reel's acceleration, not the masses. Such ticks
+    are skipped (the masses end where the gyro alone puts them); the same reel moving
+    steadily is weighed at every tick that has both neighbours."""
+    from splitter_model.joints import TETHER_INDEX
+    from splitter_model.kinematics import joint_positions_from_radii
+    from splitter_mpc.core.estimator import (
+        JointReading,
+        effort_coefficients,
+        mass_motion,
+        nominal_masses,
+    )
+
+    model = RobotModel()
+    rate = np.array([0.0, 0.4, 0.1])  # [rad/s]
+
+    def run(reel: str) -> FlightEstimator:
+        estimator = FlightEstimator(model, EstimatorConfig())
+        for k in range(12):
+            radii = (5.0 - 0.013 * k, 0.3, 0.2)  # [m]
+            swing = (-1) ** k if reel == "swinging" else 0.0
+            velocity = np.zeros(25)
+            velocity[TETHER_INDEX] = -1.3 + 0.012 * swing  # [m/s]
+            position = joint_positions_from_radii(model, radii)
+            motion = mass_motion(model, JointReading(position, velocity))
+            effort = effort_coefficients(motion, np.zeros((10, 3)), rate, np.zeros(3))
+            effort = effort @ nominal_masses(model)
+            effort[TETHER_INDEX] += 18.0 * swing  # [N] the servo's own +-1.2 m/s^2
+            joints = JointReading(position, velocity, effort)
+            t_ns = k * 10_000_000
+            if k == 0:
+                estimator.start(t_ns, rate, radii, (1.0, 0.0, 0.0, 0.0))
+            estimator.update(t_ns, rate, radii, joints=None if reel == "none" else joints)
+        return estimator
+
+    swinging, steady, gyro_only = run("swinging"), run("steady"), run("none")
+    assert swinging.effort_updates == 0
+    np.testing.assert_array_equal(swinging.estimate().masses_kg, gyro_only.estimate().masses_kg)
+    assert steady.effort_updates == 10
