@@ -227,7 +227,12 @@ def test_whole_lunar_run_agrees_with_the_pure_python_simulator(library: object, 
         assert a.actuator_work_j == pytest.approx(b.actuator_work_j, rel=1e-9, abs=1e-9)
 
 
-def test_morphing_flight_agrees_with_the_pure_python_simulator(library: object) -> None:
+@pytest.mark.parametrize(
+    "hemi_inertia", [(0.0, 0.0, 0.0), (0.03, 0.045, 0.04)], ids=["point bodies", "hemi inertia"]
+)
+def test_morphing_flight_agrees_with_the_pure_python_simulator(
+    library: object, hemi_inertia: tuple[float, float, float]
+) -> None:
     runs = []
     for compiled in (True, False):
         sim = Simulator(
@@ -235,6 +240,7 @@ def test_morphing_flight_agrees_with_the_pure_python_simulator(library: object) 
             SimConfig(ground_contact=False),
             InitialState(position_m=(0.0, 0.0, 10.0), angular_velocity_rad_s=(-0.3, -0.9, 0.9)),
             compiled=compiled,
+            hemi_inertia_kg_m2=hemi_inertia,
         )
         sim.command_joints(joint_positions_from_radii(MODEL, (2.3, 0.3, 0.13)))
         states = []

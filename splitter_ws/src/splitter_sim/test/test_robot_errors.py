@@ -27,6 +27,10 @@ CONTROL_NS = 10_000_000  # [ns]
         ({"mass_scale": (1.0, 10.0, 1.0)}, "mass_scale"),
         ({"mass_scale": (1.0, 1.0)}, "mass_scale"),
         ({"mass_scale": (1.0, math.nan, 1.0)}, "mass_scale"),
+        ({"hemi_inertia_kg_m2": (0.01, -0.01, 0.01)}, "hemi_inertia_kg_m2"),
+        ({"hemi_inertia_kg_m2": (0.01, math.nan, 0.01)}, "hemi_inertia_kg_m2"),
+        ({"hemi_inertia_kg_m2": (0.1, 0.02, 0.03)}, "hemi_inertia_kg_m2"),  # no such body
+        ({"hemi_inertia_kg_m2": 0.1}, "hemi_inertia_kg_m2"),
         ({"gyro_noise_rad_s": -0.1}, "gyro_noise_rad_s"),
         ({"gyro_noise_rad_s": math.inf}, "gyro_noise_rad_s"),
         ({"gyro_noise_rad_s": "0.1"}, "gyro_noise_rad_s"),
@@ -201,3 +205,19 @@ def test_the_rangefinders_and_leg_load_cells_read_with_their_noise() -> None:
     exact = _tick(RobotErrors())
     s = exact.state()
     assert not exact.readings(s).leg_forces_n.any()
+
+
+def test_the_plant_has_the_hemi_bodies_own_inertia() -> None:
+    """The controllers' model has point bodies (paper eq. 2); the robot flown adds each
+    hemi body's own moments, twice (two bodies), to its inertia."""
+    nominal = RobotModel()
+    errors = RobotErrors(hemi_inertia_kg_m2=(0.03, 0.045, 0.04))
+    assert errors.present and errors.plant_model(nominal) == nominal
+    config = SimConfig(ground_contact=False)
+    flown = SimulatorSettings(robot_errors=errors).simulator(config, nominal).state()
+    points = SimulatorSettings().simulator(config, nominal).state()
+    np.testing.assert_allclose(
+        flown.principal_inertia_kg_m2 - points.principal_inertia_kg_m2,
+        (0.06, 0.09, 0.08),
+        rtol=1e-9,
+    )

@@ -73,8 +73,14 @@ def _morph(sim: Simulator) -> tuple[list, list]:
     return states, [first, second]
 
 
-def test_morphing_conserves_momentum_and_energy_changes_by_actuator_work() -> None:
-    states, (_, second) = _morph(_flight())
+HEMI_INERTIA = (0.03, 0.045, 0.04)  # [kg m^2] a 3 kg box of 0.34 x 0.28 x 0.3 m
+
+
+@pytest.mark.parametrize(
+    "hemi_inertia", [(0.0, 0.0, 0.0), HEMI_INERTIA], ids=["point bodies", "hemi inertia"]
+)
+def test_morphing_conserves_momentum_and_energy_changes_by_actuator_work(hemi_inertia) -> None:
+    states, (_, second) = _morph(_flight(hemi_inertia_kg_m2=hemi_inertia))
     start, end = states[0], states[-1]
     # The joints really moved, ended at rest on the last command, and changed the energy.
     assert max(np.abs(s.joint_velocity).max() for s in states) > 1.0
@@ -91,6 +97,31 @@ def test_morphing_conserves_momentum_and_energy_changes_by_actuator_work() -> No
     for s in states[1:]:
         change = s.kinetic_energy_about_com_j - start.kinetic_energy_about_com_j
         assert abs(change - s.actuator_work_j) < 1e-6 * abs(delta_e)
+
+
+def test_hemi_bodies_add_their_own_inertia_to_the_tensor() -> None:
+    """Each hemi body turns rigidly with the base, so its own principal moments add to the
+    ten masses' tensor at every shape, moving or not (parallel axes: the bodies' centres
+    are the lumped masses); the momentum answers to the whole tensor."""
+    states = _morph(_flight(hemi_inertia_kg_m2=HEMI_INERTIA))[0]
+    points = _morph(_flight())[0]
+    for k in range(0, len(states), 40):
+        with_bodies, without = states[k], points[k]
+        np.testing.assert_array_equal(with_bodies.joint_position, without.joint_position)
+        np.testing.assert_allclose(
+            with_bodies.inertia_tensor_kg_m2 - without.inertia_tensor_kg_m2,
+            2.0 * np.diag(HEMI_INERTIA),
+            atol=1e-12,
+        )
+    start = states[0]  # at rest: h = I w, with the bodies' own inertia in I
+    world_from_base = Rotation.from_quat(np.roll(np.array(start.orientation_wxyz), -1))
+    np.testing.assert_allclose(
+        world_from_base.inv().apply(np.array(start.angular_momentum_world)),
+        start.inertia_tensor_kg_m2 @ np.asarray(PAPER_W0),
+        rtol=1e-12,
+    )
+    # a different body: the same morphing turns it differently
+    assert _relative(states[-1].angular_velocity_rad_s, points[-1].angular_velocity_rad_s) > 1e-3
 
 
 def test_reel_power_is_tension_times_reel_in_speed() -> None:

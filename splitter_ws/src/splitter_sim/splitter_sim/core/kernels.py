@@ -113,7 +113,8 @@ WS_CONTACT = slice(258, 262)  # stiffness [N/m], damping [N s/m], mu, friction s
 WS_CANDIDATES = slice(262, 272)  # 1.0 per mass that may touch the ground (prm.contact)
 FORCE_SLOTS = 4  # external forces on masses (prm.thrust: jump thrust, leg stance forces)
 WS_FORCES = slice(272, 272 + 4 * FORCE_SLOTS)  # per slot: mass index, force world [N]
-WS_SIZE = WS_FORCES.stop
+WS_OWN_INERTIA = slice(WS_FORCES.stop, WS_FORCES.stop + 3)  # hemi bodies' own [kg m^2]
+WS_SIZE = WS_OWN_INERTIA.stop
 
 # --- shape block (in the outputs) ------------------------------------------------------
 SH_MOVING = 0  # 1.0 when any joint velocity or acceleration is non-zero
@@ -174,7 +175,9 @@ def _any_nonzero(ca: Any, values: Sequence) -> Any:
     return moving
 
 
-def _sym_shape(ca: Any, q: Sequence, qd: Sequence, qdd: Sequence, model: Sequence) -> list:
+def _sym_shape(  # noqa: PLR0917  (the joint state, then the model's constants)
+    ca: Any, q: Sequence, qd: Sequence, qdd: Sequence, model: Sequence, own_inertia: Sequence
+) -> list:
     """Shape block for joint state (q, qd, qdd): ``ShapeKinematics.evaluate``'s functions.
 
     The moving branch (:func:`~splitter_sim.core.shape.mass_motion`,
@@ -183,7 +186,7 @@ def _sym_shape(ca: Any, q: Sequence, qd: Sequence, qdd: Sequence, model: Sequenc
     """
     masses = model[2 : 2 + N_MASSES]
     geometric = mass_motion(ca, q, qd, qdd, model[0], model[1], limb_constants())
-    sums = about_com_moving(ca, masses, model[2 + N_MASSES], geometric)
+    sums = about_com_moving(ca, masses, model[2 + N_MASSES], geometric, own_inertia)
     com, dcom, ddcom, inertia, inertia_dot, h, h_dot, ke, ke_dot, radius, speed = sums
     inertia_inv, det = sym_inverse_det(inertia)
     rel = relative_motion(geometric, (com, dcom, ddcom))
@@ -271,7 +274,7 @@ def _sym_finish(ca: Any, ws: Any, q: Sequence, qd: Sequence, qdd: Sequence) -> l
         q_out.append(q_j)
         qd_out.append(qd_j)
     settled = ca.logic_not(settled)
-    shape = _sym_shape(ca, q_out, qd_out, qdd, ws[WS_MODEL])
+    shape = _sym_shape(ca, q_out, qd_out, qdd, ws[WS_MODEL], ws[WS_OWN_INERTIA])
     return [*q_out, *qd_out, changed, settled, *shape]
 
 
@@ -360,7 +363,7 @@ def casadi_functions() -> list[Any]:
     ws_sx = ca.SX.sym("ws", WS_SIZE)
     ws = [ws_sx[i] for i in range(WS_SIZE)]
     q, qd, qdd = ws[WS_Q], ws[WS_QD], ws[WS_QDD]
-    model = ws[WS_MODEL]
+    model, own = ws[WS_MODEL], ws[WS_OWN_INERTIA]
 
     def function(name: str, outputs: list, size: int) -> Any:
         f = ca.Function(name, [ws_sx], [ca.vertcat(*outputs)], ["ws"], ["out"])
@@ -369,11 +372,11 @@ def casadi_functions() -> list[Any]:
         return f
 
     # sim_shape
-    shape_now = _sym_shape(ca, q, qd, qdd, model)
+    shape_now = _sym_shape(ca, q, qd, qdd, model, own)
     # sim_begin
     qdd_new = _sym_servo(ca, ws)
     moving = _any_nonzero(ca, (*qd, *qdd_new))
-    shape_begin = _sym_shape(ca, q, qd, qdd_new, model)
+    shape_begin = _sym_shape(ca, q, qd, qdd_new, model, own)
     begin = [*qdd_new, moving, *shape_begin, *_sym_ground(ca, shape_begin, ws)]
     # sim_step: joints advance over the sub-step only when WS_JOINT_ADVANCE is 1
     h = ws[WS_H]
@@ -382,8 +385,8 @@ def casadi_functions() -> list[Any]:
     q_end, qd_end = _advance(q, qd, qdd, joint_h)
     shapes = (
         shape_now,
-        _sym_shape(ca, q_mid, qd_mid, qdd, model),
-        _sym_shape(ca, q_end, qd_end, qdd, model),
+        _sym_shape(ca, q_mid, qd_mid, qdd, model, own),
+        _sym_shape(ca, q_end, qd_end, qdd, model, own),
     )
     finish = _sym_finish(ca, ws, q_end, qd_end, qdd)
     views = [_shape_view(ca, block) for block in shapes]
@@ -552,6 +555,7 @@ class Kernels:
         limits: ActuatorLimits,
         prm: DynamicsParameters,
         dt: float,
+        own_inertia: Sequence[float] = (0.0, 0.0, 0.0),
     ) -> None:
         ws = np.zeros(WS_SIZE)
         ws[WS_MODEL] = [model.thigh_length_m, model.shank_length_m, *masses, prm.total_mass]
@@ -569,6 +573,7 @@ class Kernels:
         ws[WS_SPEED_MAX] = limits.speed_max
         ws[WS_POS_MIN] = limits.position_min
         ws[WS_POS_MAX] = limits.position_max
+        ws[WS_OWN_INERTIA] = own_inertia
         self.ws = ws
         self.out_shape = np.zeros(SHAPE_SIZE)
         self.out_begin = np.zeros(BEGIN_SIZE)

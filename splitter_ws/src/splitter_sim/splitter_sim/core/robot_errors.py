@@ -6,6 +6,9 @@ as it really is. :class:`RobotErrors` says how that robot is wrong:
 
 * ``mass_scale``: the lumped masses ``m_x``, ``m_y``, ``m_z`` of the robot flown
   are the nominal ones times these factors (:meth:`RobotErrors.plant_model`);
+* ``hemi_inertia_kg_m2``: each hemi body's own principal moments of inertia about
+  its centre (base axes), which the controllers' lumped-mass model (points, paper
+  eq. 2) leaves out; the simulator adds both to the body's inertia tensor;
 * ``gyro_noise_rad_s``, ``gyro_bias_rad_s``, ``noise_seed``: the rate gyro of
   ``/splitter/imu`` reads the true body rate plus a constant bias (body frame)
   plus white Gaussian noise of this standard deviation per axis and reading
@@ -38,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
 from splitter_msgs_py.core.parameter_fields import parameter_field
+from splitter_sim.core.shape import hemi_body_inertia
 
 MASS_SCALE_MAX = 10.0  # [-] a mass scale factor lies in (0, MASS_SCALE_MAX)
 SEED_MAX = 2**31 - 1  # the largest noise seed (a ROS integer parameter holds it)
@@ -52,6 +56,13 @@ class RobotErrors:
         "robot errors: factors on the simulated masses m_x, m_y, m_z, each in (0, 10) [-]",
         length=3,
         bounds=(0.0, MASS_SCALE_MAX),
+    )
+    hemi_inertia_kg_m2: tuple[float, float, float] = parameter_field(
+        (0.0, 0.0, 0.0),
+        "robot errors: each hemi body's own principal moments of inertia about its centre, "
+        "base axes, which the point-mass model leaves out [kg m^2]",
+        length=3,
+        bounds=(0.0, 1e3),
     )
     gyro_noise_rad_s: float = parameter_field(
         0.0,
@@ -113,6 +124,11 @@ class RobotErrors:
             raise ValueError(f"mass_scale: each factor in (0, {MASS_SCALE_MAX:g}), got {scale}")
         object.__setattr__(self, "mass_scale", scale)
         object.__setattr__(
+            self,
+            "hemi_inertia_kg_m2",
+            hemi_body_inertia(_three_finite("hemi_inertia_kg_m2", self.hemi_inertia_kg_m2)),
+        )
+        object.__setattr__(
             self, "gyro_bias_rad_s", _three_finite("gyro_bias_rad_s", self.gyro_bias_rad_s)
         )
         seed = self.noise_seed
@@ -124,6 +140,7 @@ class RobotErrors:
         """True when the robot differs from the nominal one (the noise seed alone is not)."""
         return (
             self.mass_scale != (1.0, 1.0, 1.0)
+            or any(self.hemi_inertia_kg_m2)
             or self.gyro_noise_rad_s > 0.0
             or any(self.gyro_bias_rad_s)
             or self.actuator_lag_s > 0.0

@@ -114,11 +114,16 @@ class SimulatorSettings:
         """The simulator starting from this initial state; a ValueError names its parameter.
 
         It flies ``model`` (default: the nominal robot) with ``robot_errors``' masses
-        (:meth:`RobotErrors.plant_model`).
+        (:meth:`RobotErrors.plant_model`) and hemi bodies' own inertia.
         """
         plant = self.robot_errors.plant_model(model or RobotModel())
         try:
-            return Simulator(plant, config, self.initial_state())
+            return Simulator(
+                plant,
+                config,
+                self.initial_state(),
+                hemi_inertia_kg_m2=self.robot_errors.hemi_inertia_kg_m2,
+            )
         except ValueError as exc:
             raise _naming_parameter(exc) from exc
 

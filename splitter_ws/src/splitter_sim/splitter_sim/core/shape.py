@@ -186,6 +186,27 @@ def limb_constants() -> tuple[tuple[int, int, float, float, float, float, float]
     return tuple(limbs)
 
 
+def hemi_body_inertia(moments_kg_m2: Sequence[float]) -> tuple[float, float, float]:
+    """A hemi body's own principal moments [kg m^2], validated: three finite numbers >= 0
+    that a rigid body can have (each at most the sum of the other two); ValueError
+    naming ``hemi_inertia_kg_m2`` otherwise."""
+    try:
+        if isinstance(moments_kg_m2, str | bytes):
+            raise TypeError
+        values = tuple(float(v) for v in moments_kg_m2)
+    except (TypeError, ValueError):
+        raise ValueError(f"hemi_inertia_kg_m2: 3 numbers, got {moments_kg_m2!r}") from None
+    if len(values) != 3 or not all(math.isfinite(v) and v >= 0.0 for v in values):
+        raise ValueError(f"hemi_inertia_kg_m2: 3 finite numbers >= 0, got {moments_kg_m2!r}")
+    jx, jy, jz = values
+    if jx > jy + jz or jy > jx + jz or jz > jx + jy:
+        raise ValueError(
+            f"hemi_inertia_kg_m2: no rigid body has these moments {values} (each must be "
+            "at most the sum of the other two)"
+        )
+    return jx, jy, jz
+
+
 # --- the formulas, written once for floats (FLOAT_MATH) and CasADi symbols (casadi) ----------
 # ``ops``: a namespace of cos, sin, sqrt and fmax (the larger of two values), as casadi's.
 FLOAT_MATH = SimpleNamespace(cos=math.cos, sin=math.sin, sqrt=math.sqrt, fmax=max)
@@ -268,11 +289,17 @@ def mass_motion(  # noqa: PLR0917  (the joint state, then the model's constants)
 
 
 def about_com_moving(
-    ops: Any, masses: Sequence[Any], total_mass: Any, geometric: Sequence[Sequence[Any]]
+    ops: Any,
+    masses: Sequence[Any],
+    total_mass: Any,
+    geometric: Sequence[Sequence[Any]],
+    own_inertia: Sequence[Any] = (0.0, 0.0, 0.0),
 ) -> tuple[Any, ...]:
     """Mass-weighted sums of a moving shape about the tether midpoint, shifted to the COM.
 
-    ``geometric``: (px, py, pz, vx, vy, vz, ax, ay, az) of :func:`mass_motion`. Returns
+    ``geometric``: (px, py, pz, vx, vy, vz, ax, ay, az) of :func:`mass_motion`;
+    ``own_inertia``: the principal moments the two hemi bodies have of their own (base
+    axes, constant: each body turns with the base) [kg m^2], added to the tensor. Returns
     (c, dc, ddc) of the COM (3-tuples), the inertia tensor and its rate (6-tuples), the
     relative angular momentum h and its rate (3-tuples), the relative kinetic energy
     and its rate, and upper bounds of the mass distances and speeds relative to the
@@ -366,7 +393,14 @@ def about_com_moving(
         (cx, cy, cz),
         (dcx, dcy, dcz),
         (ddcx, ddcy, ddcz),
-        (syy + szz, sxx + szz, sxx + syy, -sxy, -sxz, -syz),
+        (
+            syy + szz + own_inertia[0],
+            sxx + szz + own_inertia[1],
+            sxx + syy + own_inertia[2],
+            -sxy,
+            -sxz,
+            -syz,
+        ),
         # dI/dt = sum m (2 (r.dr) E - r dr^T - dr r^T)
         (2.0 * (trace - txx), 2.0 * (trace - tyy), 2.0 * (trace - tzz), -txy, -txz, -tyz),
         (hx, hy, hz),
@@ -407,13 +441,19 @@ class ShapeKinematics:
     constants below pick them without multiplying by zeros.
     """
 
-    def __init__(self, model: RobotModel) -> None:
+    def __init__(
+        self, model: RobotModel, hemi_inertia_kg_m2: Sequence[float] = (0.0, 0.0, 0.0)
+    ) -> None:
+        """``hemi_inertia_kg_m2``: each hemi body's own principal moments about its
+        centre, base axes [kg m^2] (the lumped-mass model's bodies are points: zero)."""
         self.model = model
         self.l1 = model.thigh_length_m  # [m]
         self.l2 = model.shank_length_m  # [m]
         self.masses = tuple(float(m) for m in model.lumped_masses_kg)  # [kg]
         self.total_mass = float(sum(self.masses))  # [kg]
         self.limbs = limb_constants()
+        # both hemi bodies, rigidly turning with the base [kg m^2]
+        self.own_inertia = tuple(2.0 * j for j in hemi_body_inertia(hemi_inertia_kg_m2))
 
     def evaluate(
         self,
@@ -463,7 +503,8 @@ class ShapeKinematics:
             d2 = x * x + y * y + z * z
             if d2 > radius2:  # noqa: PLR1730  (hot path: no call)
                 radius2 = d2
-        inertia = (syy + szz, sxx + szz, sxx + syy, -sxy, -sxz, -syz)
+        jx, jy, jz = self.own_inertia
+        inertia = (syy + szz + jx, sxx + szz + jy, sxx + syy + jz, -sxy, -sxz, -syz)
         shape = Shape()
         shape.rx, shape.ry, shape.rz = rx, ry, rz
         shape.relative_ready = True
@@ -486,7 +527,9 @@ class ShapeKinematics:
 
         The per-mass lists relative to the COM are made on first use (:meth:`Shape.relative`).
         """
-        sums = about_com_moving(FLOAT_MATH, self.masses, self.total_mass, geometric)
+        sums = about_com_moving(
+            FLOAT_MATH, self.masses, self.total_mass, geometric, self.own_inertia
+        )
         com, dcom, ddcom, inertia, inertia_dot, h, h_dot, ke, ke_dot, radius, speed = sums
         shape = Shape()
         shape._geometric = (geometric, (com, dcom, ddcom))

@@ -338,11 +338,15 @@ class Simulator:
         *,
         gyroscopic_sign: float = -1.0,
         compiled: bool = True,
+        hemi_inertia_kg_m2: Sequence[float] = (0.0, 0.0, 0.0),
     ) -> None:
         """Build the simulator; ``gyroscopic_sign = +1`` is a deliberate bug for tests only.
 
         ``compiled``: run the morphing hot path as compiled C (:mod:`.kernels`) when
         the library is cached or a compiler is available; False: pure Python.
+        ``hemi_inertia_kg_m2``: each hemi body's own principal moments about its centre
+        (base axes) [kg m^2], which the lumped-mass model (points) leaves out: a robot
+        error (``RobotErrors.hemi_inertia_kg_m2``).
         """
         if gyroscopic_sign not in (-1.0, 1.0):
             raise ValueError("gyroscopic_sign must be -1 (physics) or +1 (deliberate error)")
@@ -355,7 +359,7 @@ class Simulator:
                 f"InitialState.radii_m {radii.tolist()} outside the reachable range "
                 f"[{lo.tolist()}, {hi.tolist()}]"
             )
-        self._kin = ShapeKinematics(model)
+        self._kin = ShapeKinematics(model, hemi_inertia_kg_m2)
         self._limits = actuator_limits(model)
         self._masses = np.array(self._kin.masses)
         self._q = joint_positions_from_radii(model, radii)
@@ -408,7 +412,13 @@ class Simulator:
             None
             if library is None
             else kernels.Kernels(
-                library, model, self._kin.masses, self._limits, self._prm, self._dt
+                library,
+                model,
+                self._kin.masses,
+                self._limits,
+                self._prm,
+                self._dt,
+                self._kin.own_inertia,
             )
         )
         if self._kernels is not None:
