@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from splitter_bringup.scenario.definition import ScenarioError, load_scenario
-from splitter_bringup.scenario.graph_config import simulator_parameters
+from splitter_bringup.scenario.graph_config import (
+    ESTIMATOR_NODE,
+    graph_nodes,
+    simulator_parameters,
+)
 from splitter_bringup.scenario.simulation import simulator_tick
 from splitter_model.model import RobotModel
+from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_msgs_py.parameters import config_from_values, specs_from_config
 from splitter_sim.core.robot_errors import RobotErrors
 
@@ -31,7 +36,10 @@ def test_the_robot_errors_scenario_loads_as_spin_stabilization_with_errors() -> 
     assert scenario.robot_errors == ERRORS
     base = load_scenario("spin_stabilization")
     assert base.robot_errors == RobotErrors()
-    assert scenario.variants == base.variants
+    # spin_stabilization's variants, then the hemi bodies' (flown as "mpc" is)
+    assert scenario.variants == (*base.variants, "hemi_bodies", "hemi_bodies_as_points")
+    for variant in ("hemi_bodies", "hemi_bodies_as_points"):
+        assert load_scenario(NAME, variant).controller == load_scenario(NAME, "mpc").controller
     for variant in base.variants:  # a copy of spin_stabilization but for the errors
         a, b = load_scenario(NAME, variant), load_scenario("spin_stabilization", variant)
         assert a.controller == b.controller and a.duration_s == b.duration_s
@@ -58,6 +66,18 @@ def test_the_robot_errors_scenario_loads_as_spin_stabilization_with_errors() -> 
             r"robot_errors\.joint_effort_noise: must be",
         ),
         ("robot_errors: {gyro_drift: 1}", r"robot_errors\.gyro_drift: unknown field"),
+        (
+            "robot_errors: {hemi_inertia_kg_m2: [0.1, 0.01, 0.01]}",
+            r"robot_errors\.hemi_inertia_kg_m2: no rigid body",
+        ),
+        ("estimator: 3", "estimator: expected a mapping"),
+        ("estimator: {gyro_drift: 1}", r"estimator\.gyro_drift: unknown field"),
+        (
+            "estimator: {hemi_inertia_prior_kg_m2: -0.1}",
+            r"estimator\.hemi_inertia_prior_kg_m2: .* must be >= 0",
+        ),
+        ("estimator: {gyro_noise_rad_s: .nan}", r"estimator\.gyro_noise_rad_s: .* finite"),
+        ("estimator: {use_joint_effort: 1}", r"estimator\.use_joint_effort: .* bool"),
     ],
 )
 def test_a_bad_robot_error_names_its_field(tmp_path: Path, entry: str, message: str) -> None:
@@ -78,6 +98,16 @@ def test_the_node_parameters_and_the_library_tick_carry_the_same_errors() -> Non
     nominal = RobotModel()
     assert tick.sim.model == ERRORS.plant_model(nominal)
     assert tick.sim.model.body_mass_kg == pytest.approx(1.08 * nominal.body_mass_kg)
+
+
+def test_the_estimator_section_reaches_the_node_and_the_library_alike() -> None:
+    scenario = load_scenario(NAME, "hemi_bodies")
+    assert scenario.estimator == EstimatorConfig(hemi_inertia_prior_kg_m2=0.05)
+    assert scenario.robot_errors.hemi_inertia_kg_m2 == (0.03, 0.045, 0.04)
+    assert scenario.robot_errors.mass_scale == ERRORS.mass_scale  # merged over the base
+    estimator = next(n for n in graph_nodes(scenario) if n.name == ESTIMATOR_NODE)
+    assert config_from_values(EstimatorConfig, estimator.parameters) == scenario.estimator
+    assert load_scenario(NAME).estimator == EstimatorConfig()
 
 
 def test_without_errors_the_library_tick_is_the_nominal_simulator() -> None:

@@ -9,8 +9,10 @@ publishes, stamped ``t`` and in this order:
 
 * ``/splitter/estimate/masses`` (geometry_msgs/Vector3Stamped: m_x, m_y, m_z [kg]),
 * ``/splitter/estimate/gyro_bias`` (geometry_msgs/Vector3Stamped [rad/s], base),
+* ``/splitter/estimate/hemi_inertia`` (geometry_msgs/Vector3Stamped: each hemi body's
+  own principal moments [kg m^2], base; zero unless ``hemi_inertia_prior_kg_m2``),
 * ``/splitter/estimate/inertia`` (geometry_msgs/Vector3Stamped: the estimated
-  model's principal moments at the encoders' radii [kg m^2], base),
+  robot's principal moments at the encoders' radii [kg m^2], base),
 * ``/splitter/estimate/imu`` (sensor_msgs/Imu: the estimated rate with its
   covariance, the integrated attitude),
 
@@ -150,6 +152,7 @@ class FlightEstimatorNode(Node):
             for topic, msg_type in (
                 (names.ESTIMATE_MASSES, Vector3Stamped),
                 (names.ESTIMATE_GYRO_BIAS, Vector3Stamped),
+                (names.ESTIMATE_HEMI_INERTIA, Vector3Stamped),
                 (names.ESTIMATE_INERTIA, Vector3Stamped),
                 (names.ESTIMATE_IMU, Imu),
             )
@@ -188,6 +191,9 @@ class FlightEstimatorNode(Node):
         pub[names.ESTIMATE_MASSES].publish(vector3_to_msg(t, e.masses_kg, names.BASE_FRAME))
         pub[names.ESTIMATE_GYRO_BIAS].publish(
             vector3_to_msg(t, e.gyro_bias_rad_s, names.BASE_FRAME)
+        )
+        pub[names.ESTIMATE_HEMI_INERTIA].publish(
+            vector3_to_msg(t, e.hemi_inertia_kg_m2, names.BASE_FRAME)
         )
         pub[names.ESTIMATE_INERTIA].publish(
             vector3_to_msg(t, e.principal_inertia_kg_m2, names.BASE_FRAME)

@@ -206,3 +206,25 @@ def test_a_servo_swinging_about_its_setpoint_weighs_nothing() -> None:
     assert swinging.effort_updates == 0
     np.testing.assert_array_equal(swinging.estimate().masses_kg, gyro_only.estimate().masses_kg)
     assert steady.effort_updates == 10
+
+
+def test_the_hemi_bodies_moments_are_states_only_when_asked_for() -> None:
+    """Prior std 0 (the default): the paper's point bodies, 9 states; > 0: 12, and the
+    inertia the estimator answers is eq. (2) of its masses plus both bodies' moments."""
+    radii = _radii(0.0)
+    points = FlightEstimator(RobotModel())
+    points.start(0, (0.1, 0.9, -0.4), radii, (1.0, 0.0, 0.0, 0.0))
+    assert points.estimate().covariance.shape == (9, 9)
+    np.testing.assert_array_equal(points.estimate().hemi_inertia_kg_m2, 0.0)
+    bodies = FlightEstimator(RobotModel(), EstimatorConfig(hemi_inertia_prior_kg_m2=0.05))
+    bodies.start(0, (0.1, 0.9, -0.4), radii, (1.0, 0.0, 0.0, 0.0))
+    for k in range(1, 50):
+        estimate = bodies.update(k * 10_000_000, (0.1, 0.9, -0.4), _radii(k * DT_S))
+    assert estimate.covariance.shape == (12, 12)
+    assert np.all(np.sqrt(np.diag(estimate.covariance)[9:]) <= 0.05)
+    np.testing.assert_allclose(
+        estimate.principal_inertia_kg_m2,
+        principal_inertia(bodies.estimated_model(), _radii(49 * DT_S))
+        + 2.0 * estimate.hemi_inertia_kg_m2,
+        rtol=1e-12,
+    )

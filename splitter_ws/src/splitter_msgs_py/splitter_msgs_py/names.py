@@ -54,12 +54,20 @@ TRUTH_INERTIA: Final = "/splitter/truth/inertia"
 TRUTH_TOPICS: Final = (TRUTH_IMU, TRUTH_INERTIA)
 # The flight estimator's answers (splitter_mpc.flight_estimator_node), each control tick:
 # the rate and attitude (Imu, with the rate's covariance), the estimated model's
-# principal moments, its masses (m_x, m_y, m_z [kg]) and the gyro bias [rad/s].
+# principal moments, its masses (m_x, m_y, m_z [kg]), the gyro bias [rad/s] and each hemi
+# body's own principal moments [kg m^2] (zero while the estimator takes them for points).
 ESTIMATE_IMU: Final = "/splitter/estimate/imu"
 ESTIMATE_INERTIA: Final = "/splitter/estimate/inertia"
 ESTIMATE_MASSES: Final = "/splitter/estimate/masses"
 ESTIMATE_GYRO_BIAS: Final = "/splitter/estimate/gyro_bias"
-ESTIMATE_TOPICS: Final = (ESTIMATE_IMU, ESTIMATE_INERTIA, ESTIMATE_MASSES, ESTIMATE_GYRO_BIAS)
+ESTIMATE_HEMI_INERTIA: Final = "/splitter/estimate/hemi_inertia"
+ESTIMATE_TOPICS: Final = (
+    ESTIMATE_IMU,
+    ESTIMATE_INERTIA,
+    ESTIMATE_MASSES,
+    ESTIMATE_GYRO_BIAS,
+    ESTIMATE_HEMI_INERTIA,
+)
 
 # Fully qualified ROS type names, as rosbag2 writes them.
 TOPIC_TYPES: Final[dict[str, str]] = {
@@ -88,6 +96,7 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     ESTIMATE_INERTIA: "geometry_msgs/msg/Vector3Stamped",
     ESTIMATE_MASSES: "geometry_msgs/msg/Vector3Stamped",
     ESTIMATE_GYRO_BIAS: "geometry_msgs/msg/Vector3Stamped",
+    ESTIMATE_HEMI_INERTIA: "geometry_msgs/msg/Vector3Stamped",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
 }
 

@@ -73,7 +73,7 @@ def _morph(sim: Simulator) -> tuple[list, list]:
     return states, [first, second]
 
 
-HEMI_INERTIA = (0.03, 0.045, 0.04)  # [kg m^2] a 3 kg box of 0.34 x 0.28 x 0.3 m
+HEMI_INERTIA = (0.03, 0.045, 0.04)  # [kg m^2] a 3 kg box of 0.33 x 0.22 x 0.26 m
 
 
 @pytest.mark.parametrize(

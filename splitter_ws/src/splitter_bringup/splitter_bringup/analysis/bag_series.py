@@ -157,7 +157,7 @@ def estimate_extras(samples: dict[str, TopicSamples]) -> dict[str, NDArray[np.fl
     """The flight estimator's answers (``/splitter/estimate/*``) as the library loop
     records them: one row per control tick it answered (none without an estimator)."""
     topics = (names.ESTIMATE_IMU, names.ESTIMATE_INERTIA, names.ESTIMATE_MASSES)
-    topics += (names.ESTIMATE_GYRO_BIAS,)
+    topics += (names.ESTIMATE_GYRO_BIAS, names.ESTIMATE_HEMI_INERTIA)
     if not all(t in samples and samples[t].stamps_ns for t in topics):
         return {}
     grid = common_stamps(*(samples[t].stamps_ns for t in topics))
@@ -174,6 +174,7 @@ def estimate_extras(samples: dict[str, TopicSamples]) -> dict[str, NDArray[np.fl
         "estimate_mass_ratios": masses[:, 1:] / masses[:, :1],
         "estimate_masses_kg": masses,
         "estimate_inertia_kg_m2": at(names.ESTIMATE_INERTIA, "v"),
+        "estimate_hemi_inertia_kg_m2": at(names.ESTIMATE_HEMI_INERTIA, "v"),
     }
 
 

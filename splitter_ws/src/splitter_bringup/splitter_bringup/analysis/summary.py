@@ -36,6 +36,14 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
         metrics.pop("max_horizontal_speed_m_s", None)
     if scenario.robot_errors.present and "estimate_gyro_bias_rad_s" in series.extras:
         metrics.update(estimator_metrics(series, scenario))
+        bodies = any(scenario.robot_errors.hemi_inertia_kg_m2)
+        if bodies or scenario.estimator.hemi_inertia_prior_kg_m2 > 0.0:
+            metrics["estimator_hemi_inertia_error_kg_m2"] = Metric(
+                hemi_inertia_error(series, scenario.robot_errors),
+                "kg m^2",
+                "|estimated - true| moment of a hemi body about the tether axis at the last "
+                "control tick (the estimator's model has points unless it estimates it)",
+            )
     return metrics
 
 
@@ -64,6 +72,18 @@ def estimator_errors(series: RunSeries, errors: RobotErrors) -> tuple[float, flo
         float(np.max(np.abs(ratios / true_ratios - 1.0))),
         float(np.max(np.abs(masses / true_masses - 1.0))),
     )
+
+
+def hemi_inertia_error(series: RunSeries, errors: RobotErrors) -> float:
+    """|estimated - true| own moment of a hemi body about the tether axis [kg m^2] at the
+    last tick the controllers acted on (as :func:`estimator_errors`); NaN without one."""
+    if "estimate_hemi_inertia_kg_m2" not in series.extras or len(series) == 0:
+        return math.nan
+    acted = np.flatnonzero(series.extras["estimate_t_s"] <= series.t_s[-1] - LAST_TICK_S)
+    if acted.size == 0:
+        return math.nan
+    estimated = float(series.extras["estimate_hemi_inertia_kg_m2"][int(acted[-1])][0])
+    return abs(estimated - errors.hemi_inertia_kg_m2[0])
 
 
 def estimator_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:

@@ -134,7 +134,7 @@ def run_closed_loop(
     failure at the re-plans at those times (tests of the failure handling).
     ``duration_s`` shortens the run. The simulator flies the scenario's
     ``robot_errors`` (masses, gyro, actuator lag); the controllers then fly on the
-    flight estimator (``estimation`` its noise model) as the graph's do
+    flight estimator (``estimation`` its parameters, default the scenario's) as the graph's do
     (:func:`~splitter_bringup.scenario.graph_config.flies_on_estimates`), unless
     ``estimator`` says otherwise (False: they read the gyro and the simulator's inertia
     as they are, and do not lead their commands through the lag). The series records
@@ -159,6 +159,7 @@ def run_closed_loop(
     gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
     mpc_tick = MpcTick(controller, MpcTickSettings(estimated_masses=estimated))
     allocator = AllocatorTick(model)  # starts, as its node, from the first measured inertia
+    estimation = scenario.estimator if estimation is None else estimation
     flight = EstimatorTick(model, estimation, CONTROL_PERIOD_NS) if estimated else None
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
     duration = scenario.duration_s if duration_s is None else min(duration_s, scenario.duration_s)
@@ -263,6 +264,7 @@ def estimate_extras(estimates: list[FlightEstimate]) -> dict[str, np.ndarray]:
         "estimate_mass_ratios": np.array([e.mass_ratios for e in estimates]),
         "estimate_masses_kg": np.array([e.masses_kg for e in estimates]),
         "estimate_inertia_kg_m2": np.array([e.principal_inertia_kg_m2 for e in estimates]),
+        "estimate_hemi_inertia_kg_m2": np.array([e.hemi_inertia_kg_m2 for e in estimates]),
     }
 
 

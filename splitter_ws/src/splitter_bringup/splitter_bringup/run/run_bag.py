@@ -86,6 +86,7 @@ def _decoders() -> dict[str, Callable[[Any, int, TopicSamples], None]]:
         names.ESTIMATE_INERTIA: vector,
         names.ESTIMATE_MASSES: vector,
         names.ESTIMATE_GYRO_BIAS: vector,
+        names.ESTIMATE_HEMI_INERTIA: vector,
     }
 
 

@@ -8,7 +8,10 @@ qualitative findings, each a comparison of one metric between two variants
 (:class:`PaperFinding`), which ``splitter run`` checks on the variants it ran.
 ``robot_errors`` (optional) makes the simulated robot differ from the nominal one
 its controllers assume (:class:`~splitter_sim.core.robot_errors.RobotErrors`:
-masses, gyro noise and bias, actuator lag), in the graph and the library loop alike.
+masses, hemi bodies' inertia, gyro noise and bias, actuator lag), in the graph and the
+library loop alike. ``estimator`` (optional) sets the flight estimator's parameters
+(:class:`~splitter_mpc.core.estimator.EstimatorConfig`) that the robot's errors ask
+for: its sensors' datasheet, and which model parameters it identifies.
 """
 
 from __future__ import annotations
@@ -26,8 +29,10 @@ import yaml
 from numpy.typing import NDArray
 
 from splitter_model.model import gravity_from_name
+from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
+from splitter_msgs_py.core.parameter_fields import parameter_fields
 from splitter_sim.core.robot_errors import RobotErrors
 
 
@@ -131,6 +136,9 @@ class Scenario:
     # how the simulated robot differs from the nominal one its controllers assume
     # (masses, gyro noise and bias, actuator lag); default: not at all
     robot_errors: RobotErrors = field(default_factory=RobotErrors)
+    # the flight estimator's parameters (the graph's flight_estimator node, the library's
+    # estimator), when the robot errors put the controllers on it; default: its defaults
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     paper: Mapping[str, Any] = field(default_factory=dict)
     variants: tuple[str, ...] = ()
     findings: tuple[PaperFinding, ...] = ()
@@ -205,6 +213,27 @@ def _robot_errors(data: Any) -> RobotErrors:
         return RobotErrors(**values)
     except ValueError as exc:  # names the field first
         raise ScenarioError(f"robot_errors.{exc}") from exc
+
+
+def _estimator(data: Any) -> EstimatorConfig:
+    """The ``estimator`` mapping (parameters of :class:`EstimatorConfig`, checked as the
+    node checks them); errors name the field."""
+    if data is None:
+        return EstimatorConfig()
+    if not isinstance(data, Mapping):
+        raise ScenarioError(f"estimator: expected a mapping of field -> value, got {data!r}")
+    specs = {name: spec for name, _default, spec in parameter_fields(EstimatorConfig)}
+    unknown = sorted(set(data) - set(specs))
+    if unknown:
+        raise ScenarioError(f"estimator.{unknown[0]}: unknown field; use {sorted(specs)}")
+    values = {}
+    for name, value in data.items():
+        try:
+            checked = specs[name].validate(value)
+        except ValueError as exc:
+            raise ScenarioError(f"estimator.{name}: {exc}") from exc
+        values[name] = tuple(checked) if isinstance(checked, list) else checked
+    return EstimatorConfig(**values)
 
 
 def _findings(data: Any, variants: tuple[str, ...]) -> tuple[PaperFinding, ...]:
@@ -323,6 +352,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         ground_contact=bool(d.get("ground_contact", False)),
         compliant_legs=bool(d.get("compliant_legs", False)),
         robot_errors=_robot_errors(d.get("robot_errors")),
+        estimator=_estimator(d.get("estimator")),
         paper=dict(d.get("paper", {}) or {}),
         variants=variants,
         findings=_findings(d.get("findings"), variants),

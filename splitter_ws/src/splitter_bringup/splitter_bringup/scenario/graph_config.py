@@ -14,8 +14,10 @@ from typing import Any
 
 from splitter_bag.core.node_parameters import parameter_file_text
 from splitter_bringup.scenario.definition import Scenario
+from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
 from splitter_msgs_py import names
+from splitter_msgs_py.core.parameter_fields import parameter_fields
 
 
 @dataclass(frozen=True)
@@ -127,6 +129,15 @@ def robot_error_parameters(scenario: Scenario) -> dict:
     return values
 
 
+def estimator_parameters(scenario: Scenario) -> dict:
+    """The flight estimator's parameters of the scenario (``EstimatorConfig``'s fields)."""
+    values: dict = {}
+    for name, _default, _spec in parameter_fields(EstimatorConfig):
+        value = getattr(scenario.estimator, name)
+        values[name] = _floats(value) if isinstance(value, tuple) else value
+    return values
+
+
 def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
     """Inertial-morphing MPC node parameters of a scenario.
 
@@ -220,7 +231,7 @@ def graph_nodes(
                 ESTIMATOR_NODE,
                 "splitter_mpc.flight_estimator_node:main",
                 "splitter_mpc.flight_estimator_node:FlightEstimatorNode",
-                {"use_sim_time": True},
+                {"use_sim_time": True, **estimator_parameters(scenario)},
             )
         )
     remaps = ESTIMATE_REMAPPINGS if estimated else {}

@@ -6,15 +6,20 @@ motion of each lumped mass) and its joint effort sensors (limb joint torques,
 the reel's tether tension). What it cannot: its masses. An extended Kalman filter
 over
 
-    x = [w (3) [rad/s], b (3) [rad/s], theta (3) [-]]
+    x = [w (3) [rad/s], b (3) [rad/s], theta (3) [-]]  (+ J (3) [kg m^2])
 
-with ``theta = ln(m / m_nominal)`` for ``(m_x, m_y, m_z)``.
+with ``theta = ln(m / m_nominal)`` for ``(m_x, m_y, m_z)`` and, when
+``EstimatorConfig.hemi_inertia_prior_kg_m2`` is set, ``J`` each hemi body's own
+principal moments about its centre, which the paper's point masses leave out (the
+principal inertia is eq. 2 plus ``2 J``; prior mean 0, the nominal model). Only
+``J_x`` is well observed: ``J_y`` and ``J_z`` sit beside the hemis' ``m r_x^2``
+(0.1 % of ``I_yy`` at ``r_x`` = 2 m) and end where they least disturb the rest.
 
 Prediction over a control period ``dt`` between encoder readings ``k`` and ``k+1``:
 torque-free flight conserves the angular momentum in the world, so in the body
 frame ``dh/dt = -w x h`` with ``h = I(t) w`` and ``I(t)`` the model's principal
 inertia along the measured radii (linear between the two readings); one RK4 step.
-Bias and masses are constant up to small random walks.
+Bias, masses and body inertia are constant up to small random walks.
 
 Updates:
 
@@ -35,6 +40,8 @@ Updates:
   specific force (drag, anything but gravity on the centre of mass) adds to every
   mass's acceleration. Linear in the masses:
   they, the common scale included, are observable whenever the robot spins.
+  The bodies' own inertia loads no joint (a body turns with the base): the gyro sees
+  it, through Euler's equations, once the efforts have fixed the masses.
 
 Contact (ground forces and torques) breaks both models: :meth:`FlightEstimator.update`
 takes ``in_flight=False`` to freeze bias and masses, skip the efforts and follow the gyro.
@@ -44,7 +51,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
@@ -62,8 +69,8 @@ from splitter_model.model import RobotModel, principal_inertia
 from splitter_model.rotations import quaternion_product
 from splitter_msgs_py.core.parameter_fields import parameter_field
 
-NX = 9  # [w (3), b (3), theta (3)]
-W, B, THETA = slice(0, 3), slice(3, 6), slice(6, 9)
+NX = 9  # [w (3), b (3), theta (3)]; + 3 with the hemi bodies' inertia (HEMI)
+W, B, THETA, HEMI = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 _POSITIVE = (1e-12, 1e3)
 _HEMI_A_LIMBS = tuple(limb for limb in range(N_LIMBS) if LIMB_HEMI_SIGNS[limb] > 0.0)
 
@@ -126,6 +133,22 @@ class EstimatorConfig:
     use_joint_effort: bool = parameter_field(
         True, "update the masses from the joint efforts (when the joint states carry them)"
     )
+    hemi_inertia_prior_kg_m2: float = parameter_field(
+        0.0,
+        "prior std of each of a hemi body's own principal moments of inertia (prior mean "
+        "0, the paper's point masses); 0: the bodies are points, nothing estimated [kg m^2]",
+        bounds=(0.0, 10.0),
+    )
+    hemi_inertia_random_walk: float = parameter_field(
+        1e-6,
+        "random walk of each hemi body's own moment, std per sqrt(s) [kg m^2/sqrt(s)]",
+        bounds=_POSITIVE,
+    )
+
+    @property
+    def state_size(self) -> int:
+        """9, or 12 with the hemi bodies' own principal moments."""
+        return NX + 3 if self.hemi_inertia_prior_kg_m2 > 0.0 else NX
 
 
 @dataclass(frozen=True)
@@ -146,10 +169,12 @@ class FlightEstimate:
     gyro_bias_rad_s: NDArray[np.float64]  # (3,) body [rad/s]
     mass_ratios: NDArray[np.float64]  # (m_y/m_x, m_z/m_x) [-]
     masses_kg: NDArray[np.float64]  # (m_x, m_y, m_z) of the estimated model [kg]
-    principal_inertia_kg_m2: NDArray[np.float64]  # (3,) the estimated model at the radii
+    principal_inertia_kg_m2: NDArray[np.float64]  # (3,) the estimated robot at the radii
     orientation_wxyz: NDArray[np.float64]  # (4,) world <- base, integrated rate
-    covariance: NDArray[np.float64]  # (9, 9) of [w, b, theta]
+    covariance: NDArray[np.float64]  # (9, 9) of [w, b, theta] (12, 12: and J)
     effort_updates: int = 0  # ticks whose joint efforts corrected the masses
+    # (3,) each hemi body's own principal moments [kg m^2]; zero: point bodies
+    hemi_inertia_kg_m2: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     @property
     def rate_std_rad_s(self) -> NDArray[np.float64]:
@@ -185,15 +210,21 @@ def _principal_inertia(nominal: RobotModel, theta, radii):
     )
 
 
-def _transition(nominal: RobotModel) -> ca.Function:
-    """(x, radii_k, radii_k1, dt) -> (x_next, F = dx_next/dx): the prediction, one RK4 step."""
-    x = ca.SX.sym("x", NX)
+def _transition(nominal: RobotModel, nx: int = NX) -> ca.Function:
+    """(x, radii_k, radii_k1, dt) -> (x_next, F = dx_next/dx): the prediction, one RK4 step.
+
+    ``nx`` 12: the states carry the hemi bodies' own moments ``J``: ``I = eq. 2 + 2 J``.
+    """
+    x = ca.SX.sym("x", nx)
     r0 = ca.SX.sym("radii_k", 3)
     r1 = ca.SX.sym("radii_k1", 3)
     dt = ca.SX.sym("dt")
     theta = x[THETA]
     i0 = _principal_inertia(nominal, theta, r0)
     i1 = _principal_inertia(nominal, theta, r1)
+    if nx > NX:
+        i0 = i0 + 2.0 * x[HEMI]
+        i1 = i1 + 2.0 * x[HEMI]
 
     def rate(h, s):
         inertia = i0 + s * (i1 - i0)
@@ -205,7 +236,7 @@ def _transition(nominal: RobotModel) -> ca.Function:
     k3 = rate(h + 0.5 * dt * k2, 0.5)
     k4 = rate(h + dt * k3, 1.0)
     h_next = h + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    x_next = ca.vertcat(h_next / i1, x[B], x[THETA])
+    x_next = ca.vertcat(h_next / i1, x[B], x[THETA], *([x[HEMI]] if nx > NX else []))
     return ca.Function(
         "estimator_transition",
         [x, r0, r1, dt],
@@ -300,9 +331,10 @@ class FlightEstimator:
     def __init__(self, nominal: RobotModel, config: EstimatorConfig | None = None) -> None:
         self.nominal = nominal
         self.config = config or EstimatorConfig()
-        self._f = _transition(nominal)
+        self._nx = self.config.state_size
+        self._f = _transition(nominal, self._nx)
         self._x: NDArray[np.float64] | None = None
-        self._p = np.zeros((NX, NX))
+        self._p = np.zeros((self._nx, self._nx))
         self._radii: NDArray[np.float64] | None = None
         self._t_ns: int | None = None
         self._q = np.array([1.0, 0.0, 0.0, 0.0])
@@ -316,12 +348,13 @@ class FlightEstimator:
     def start(self, t_ns: int, gyro_rad_s: ArrayLike, radii_m: ArrayLike, q_wxyz: ArrayLike):
         """First reading: the rate is the gyro's, the bias and masses their priors."""
         c = self.config
-        self._x = np.zeros(NX)
+        self._x = np.zeros(self._nx)
         self._x[W] = np.asarray(gyro_rad_s, dtype=float)
         self._p = np.diag(
             [c.gyro_bias_prior_rad_s**2 + c.gyro_noise_rad_s**2] * 3
             + [c.gyro_bias_prior_rad_s**2] * 3
             + [c.mass_prior**2] * 3
+            + [c.hemi_inertia_prior_kg_m2**2] * (self._nx - NX)
         )
         self._p[W, B] = self._p[B, W] = -np.eye(3) * c.gyro_bias_prior_rad_s**2
         self._radii = np.asarray(radii_m, dtype=float).copy()
@@ -354,22 +387,24 @@ class FlightEstimator:
             w_before = self._x[W].copy()
             x_next, f = self._f(self._x, self._radii, radii, dt)
             f = np.asarray(f)
-            x_next = np.asarray(x_next).reshape(NX)
+            x_next = np.asarray(x_next).reshape(self._nx)
             q_proc = np.diag(
                 [c.rate_process_noise**2 * dt] * 3
                 + [c.bias_random_walk**2 * dt] * 3
                 + [c.mass_random_walk**2 * dt] * 3
+                + [c.hemi_inertia_random_walk**2 * dt] * (self._nx - NX)
             )
             if not in_flight:  # a contact torque: follow the gyro, keep bias and masses
-                f[THETA, :] = 0.0
-                f[THETA, THETA] = np.eye(3)
-                f[W, THETA] = 0.0  # the rate owes the masses nothing: no flight model
+                model = slice(THETA.start, self._nx)  # masses (and bodies' inertia)
+                f[model, :] = 0.0
+                f[model, model] = np.eye(self._nx - THETA.start)
+                f[W, model] = 0.0  # the rate owes the masses nothing: no flight model
                 q_proc[W, W] += np.eye(3) * 1e2 * dt
             self._x = x_next
             self._p = f @ self._p @ f.T + q_proc
             self._integrate_attitude(0.5 * (w_before + self._x[W]), dt)
         # gyro update: z = w + b + v
-        h = np.zeros((3, NX))
+        h = np.zeros((3, self._nx))
         h[:, W] = np.eye(3)
         h[:, B] = np.eye(3)
         self._correct(h, z - self._x[W] - self._x[B], np.full(3, c.gyro_noise_rad_s**2))
@@ -391,7 +426,7 @@ class FlightEstimator:
         s = h @ self._p @ h.T + r
         k = np.linalg.solve(s, h @ self._p).T
         self._x = self._x + k @ innovation
-        i_kh = np.eye(NX) - k @ h
+        i_kh = np.eye(self._nx) - k @ h
         self._p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
         self._p = 0.5 * (self._p + self._p.T)
 
@@ -425,7 +460,7 @@ class FlightEstimator:
             limb_mass_y_kg=masses[1],
             limb_mass_z_kg=masses[2],
         )
-        inertia = principal_inertia(model, tick.radii)
+        inertia = principal_inertia(model, tick.radii) + 2.0 * self._hemi_inertia()
         inertia_dot = (
             principal_inertia(model, after.radii) - principal_inertia(model, before.radii)
         ) / span_s
@@ -436,7 +471,7 @@ class FlightEstimator:
         )
         predicted = coefficients @ masses
         rows = np.flatnonzero(np.abs(coefficients).sum(axis=1) > 0.0)
-        h = np.zeros((rows.size, NX))
+        h = np.zeros((rows.size, self._nx))
         h[:, THETA] = coefficients[rows] * masses  # d(effort)/d ln(m)
         variances = c.joint_effort_noise**2 + (c.effort_model_error * predicted[rows]) ** 2
         self._correct(h, np.asarray(effort, dtype=float)[rows] - predicted[rows], variances)
@@ -450,6 +485,12 @@ class FlightEstimator:
             q = np.array(quaternion_product(tuple(self._q), dq), dtype=float)
             self._q = q / np.linalg.norm(q)
 
+    def _hemi_inertia(self) -> NDArray[np.float64]:
+        """Each hemi body's own moments as estimated (zero: point bodies) [kg m^2]."""
+        if self._x is None or self._nx == NX:
+            return np.zeros(3)
+        return self._x[HEMI].copy()
+
     def estimated_model(self) -> RobotModel:
         """The robot the controllers should plan with: the estimated masses."""
         theta = np.zeros(3) if self._x is None else self._x[THETA]
@@ -460,14 +501,16 @@ class FlightEstimator:
             raise RuntimeError("FlightEstimator.estimate before start")
         model = model_with_log_masses(self.nominal, self._x[THETA])
         masses = nominal_masses(model)
+        hemi = self._hemi_inertia()
         return FlightEstimate(
             t_ns=self._t_ns,
             angular_velocity_rad_s=self._x[W].copy(),
             gyro_bias_rad_s=self._x[B].copy(),
             mass_ratios=masses[1:] / masses[0],
             masses_kg=masses,
-            principal_inertia_kg_m2=principal_inertia(model, self._radii),
+            principal_inertia_kg_m2=principal_inertia(model, self._radii) + 2.0 * hemi,
             orientation_wxyz=self._q.copy(),
             covariance=self._p.copy(),
             effort_updates=self.effort_updates,
+            hemi_inertia_kg_m2=hemi,
         )
