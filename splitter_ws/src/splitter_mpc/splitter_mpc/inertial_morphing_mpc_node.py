@@ -42,6 +42,7 @@ from splitter_mpc.core.mpc_tick import (
     PARAMETER_NAMES,
     MpcAnswer,
     MpcTick,
+    checked_hemi_inertia,
     checked_masses,
     checked_rate,
     controller_config_from_parameters,
@@ -119,7 +120,13 @@ INPUTS: dict[str, tuple[type, object, Callable[[object], object]]] = {
         qos_for(names.ESTIMATE_MASSES),
         lambda msg: checked_masses(vector3_from_msg(msg).vector),
     ),
+    names.ESTIMATE_HEMI_INERTIA: (
+        Vector3Stamped,
+        qos_for(names.ESTIMATE_HEMI_INERTIA),
+        lambda msg: checked_hemi_inertia(vector3_from_msg(msg).vector),
+    ),
 }
+ESTIMATED_MODEL = (names.ESTIMATE_MASSES, names.ESTIMATE_HEMI_INERTIA)
 
 
 class InertialMorphingMpcNode(Node):
@@ -158,7 +165,7 @@ class InertialMorphingMpcNode(Node):
             DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
         )
         for topic, (msg_type, qos, _read) in INPUTS.items():
-            if topic == names.ESTIMATE_MASSES and not settings.estimated_masses:
+            if topic in ESTIMATED_MODEL and not settings.estimated_masses:
                 continue
             self.create_subscription(
                 msg_type, topic, lambda msg, topic=topic: self._on_input(topic, msg), qos

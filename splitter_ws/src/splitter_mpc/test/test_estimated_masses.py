@@ -55,13 +55,19 @@ def test_the_built_dynamics_in_scaled_radii_are_the_other_robots(mpc) -> None:
     np.testing.assert_array_equal(mpc.column_scale, np.ones(3))
 
 
-def test_a_plan_for_other_masses_comes_back_as_shapes(mpc) -> None:
+@pytest.mark.parametrize(
+    "hemi_inertia", [(0.0, 0.0, 0.0), (0.03, 0.045, 0.04)], ids=["point bodies", "hemi bodies"]
+)
+def test_a_plan_for_other_masses_comes_back_as_shapes(mpc, hemi_inertia) -> None:
+    """Other masses, and hemi bodies with their own moments J [kg m^2]: the robot's
+    inertia is eq. (2) of its masses plus 2 J, and the plan starts from its true shape."""
     mpc.reset()
     ctl = MorphingController(MODEL, ControllerConfig(mpc=mpc.settings), mpc)
     ctl.set_reference(0, [0.0, 1.0, 0.0], Q0)
-    ctl.set_mass_model(OTHER)
+    ctl.set_mass_model(OTHER, hemi_inertia)
     try:
-        inertia = principal_inertia(OTHER, PAPER_INITIAL_RADII_M)  # what the robot has
+        own = 2.0 * np.asarray(hemi_inertia)
+        inertia = principal_inertia(OTHER, PAPER_INITIAL_RADII_M) + own  # what the robot has
         ctl.on_state(0, W0, Q0, inertia, "IN_FLIGHT")
         plan = ctl.plan
         assert plan is not None and plan.result.usable
@@ -83,9 +89,13 @@ def test_a_tick_with_estimated_masses_waits_for_them(mpc) -> None:
     inertia = principal_inertia(MODEL, PAPER_INITIAL_RADII_M)
     try:
         assert tick.on_state(0, W0, Q0, inertia) is None  # no masses for tick 0 yet
-        answer = tick.add(names.ESTIMATE_MASSES, 0, np.array([3.3, 1.35, 1.6]))
+        assert tick.add(names.ESTIMATE_MASSES, 0, np.array([3.3, 1.35, 1.6])) is None
+        hemi = np.array([0.03, 0.045, 0.04])  # [kg m^2] and the bodies' own moments
+        answer = tick.add(names.ESTIMATE_HEMI_INERTIA, 0, hemi)
         assert answer is not None and answer.setpoint_kg_m2 is not None
         np.testing.assert_allclose(mpc.column_scale[1:], [1.35 / 1.5, 1.6 / 1.5])
+        # the shapes' states carry D s + c with M_built c = 2 J
+        np.testing.assert_allclose(mpc.ocp.inertia_map @ mpc.state_offset, 2.0 * hemi)
     finally:
         mpc.set_mass_model(MODEL)
 

@@ -185,7 +185,7 @@ def run_closed_loop(
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
             rate, attitude, inertia = gyro, q_measured, state.principal_inertia_kg_m2
-            masses = None
+            masses = hemi = None
             if flight is not None:  # the controllers' imu and inertia: the estimator's
                 joints = JointReading(
                     state.joint_position, state.joint_velocity, readings.joint_effort
@@ -200,6 +200,7 @@ def run_closed_loop(
                 rate = estimate.angular_velocity_rad_s
                 attitude = received_quaternion(estimate.orientation_wxyz, hops=1)
                 inertia, masses = estimate.principal_inertia_kg_m2, estimate.masses_kg
+                hemi = estimate.hemi_inertia_kg_m2
             answer = gait.on_sensors(
                 t,
                 ImuReading(q_measured, gyro, state.linear_acceleration_m_s2),
@@ -221,7 +222,9 @@ def run_closed_loop(
             sim.command_jump(t, out.jump_force_n, out.jump_torque_nm)
             if t in fail_ns:
                 controller.inject_solver_failures(1)
-            planned = mpc_tick.on_state(t, rate, attitude, inertia, masses_kg=masses)
+            planned = mpc_tick.on_state(
+                t, rate, attitude, inertia, masses_kg=masses, hemi_inertia_kg_m2=hemi
+            )
             if planned is None or planned.setpoint_kg_m2 is None:
                 raise ValueError(f"MPC tick at t = {t * 1e-9:.3f} s not answered: {planned}")
             setpoint = planned.setpoint_kg_m2

@@ -251,9 +251,12 @@ class MorphingController(Closable):
         """Weights for the following solves (the built problem is reused)."""
         self.weights = weights
 
-    def set_mass_model(self, model: RobotModel) -> None:
-        """Plan with these masses from the next solve (an estimate; same geometry)."""
-        self.mpc.set_mass_model(model)
+    def set_mass_model(
+        self, model: RobotModel, hemi_inertia_kg_m2: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Plan with these masses and hemi bodies' own moments [kg m^2] from the next
+        solve (an estimate; same geometry)."""
+        self.mpc.set_mass_model(model, hemi_inertia_kg_m2)
 
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""

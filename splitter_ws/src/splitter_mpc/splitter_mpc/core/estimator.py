@@ -12,8 +12,9 @@ with ``theta = ln(m / m_nominal)`` for ``(m_x, m_y, m_z)`` and, when
 ``EstimatorConfig.hemi_inertia_prior_kg_m2`` is set, ``J`` each hemi body's own
 principal moments about its centre, which the paper's point masses leave out (the
 principal inertia is eq. 2 plus ``2 J``; prior mean 0, the nominal model). Only
-``J_x`` is well observed: ``J_y`` and ``J_z`` sit beside the hemis' ``m r_x^2``
-(0.1 % of ``I_yy`` at ``r_x`` = 2 m) and end where they least disturb the rest.
+``J_x`` is observed in a tumble: ``J_y`` and ``J_z`` sit beside the hemis' ``m r_x^2``
+(0.1 % of ``I_yy`` at ``r_x`` = 2 m), so they wander within their prior, and matter
+as little to the controllers.
 
 Prediction over a control period ``dt`` between encoder readings ``k`` and ``k+1``:
 torque-free flight conserves the angular momentum in the world, so in the body

@@ -309,12 +309,18 @@ class InertialMorphingMpc(Closable):
         ).expand()
         self._last: tuple[int, SolverResult] | None = None
         self.mass_model = model
-        # [-] D with M_model = M_built D: the OCP, built with the model's masses, plans
-        # in s~ = D s (set_mass_model)
+        # [-] D with M_model = M_built D, and c [m^2] with M_built c = 2 J (the hemi
+        # bodies' own moments): the OCP, built with the model's masses and point bodies,
+        # plans in s~ = D s + c (set_mass_model)
         self.column_scale = np.ones(3)
+        self.state_offset = np.zeros(3)
+        self.own_inertia = np.zeros(3)  # [kg m^2] 2 J, both bodies
 
-    def set_mass_model(self, model: RobotModel) -> None:
-        """Plan for a robot with other masses (the same geometry), without rebuilding.
+    def set_mass_model(
+        self, model: RobotModel, hemi_inertia_kg_m2: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Plan for a robot with other masses (the same geometry) and hemi bodies with
+        their own principal moments ``J`` [kg m^2] each, without rebuilding.
 
         Each column of the map ``I = M s`` (paper eq. 2) is one mass times a constant:
         ``m_tether = 2 m_x + 4 m_y + 4 m_z`` for ``r_x^2``, ``4 m_y`` for ``r_y^2``,
@@ -325,6 +331,13 @@ class InertialMorphingMpc(Closable):
         the built ``m_x`` (the estimator keeps the nominal ``m_x``). Plans are returned
         as shapes (:attr:`MpcPlan.inertia` in the built model's moments), so the setpoints
         mean the same radii to an allocator that knows only the built model.
+
+        The bodies' own moments add a constant ``2 J`` to every shape's inertia:
+        ``I = M_model s + 2 J = M_built (D s + c)`` with ``M_built c = 2 J``. The OCP's
+        states carry ``s~ = D s + c``, its dynamics are unchanged, its bounds shift by
+        ``c``, the measured inertia loses ``2 J`` before its projection onto the shapes
+        and the plans lose ``c`` before they become shapes. ``J = 0``: ``c = 0`` and
+        every number is the point bodies' to the bit.
         """
         built = self.ocp.inertia_map
         wanted = inertia_map(model)
@@ -335,6 +348,8 @@ class InertialMorphingMpc(Closable):
             raise ValueError("set_mass_model: the model's geometry differs from the built one")
         self.mass_model = model
         self.column_scale = scale
+        self.own_inertia = 2.0 * np.asarray(hemi_inertia_kg_m2, dtype=float).reshape(3)
+        self.state_offset = np.linalg.solve(built, self.own_inertia)
         s = self.settings
         self.limits = morphing_limits(model, s.dt_s, s.tension_min_n, s.radius_rate_scale)
 
@@ -404,6 +419,7 @@ class InertialMorphingMpc(Closable):
         xs, _ = self.ocp.split(result.z)
         layout = self.ocp.state
         shape = xs.copy()  # the planned radii^2, whatever masses were planned with
+        shape[:, layout.radii_sq] -= self.state_offset
         shape[:, layout.radii_sq] /= self.column_scale
         if result.usable or (self.settings.solver in ("sqp", "rti") and np.isfinite(result.cost)):
             self._last = (int(t_ns), result)  # an SQP iterate still warm-starts the next one
@@ -427,15 +443,18 @@ class InertialMorphingMpc(Closable):
         weights = request.weights.per_stage(self.settings.weights_step_ratio)
         measured = np.asarray(request.state, dtype=float).reshape(N_MEASURED)
         x0 = self.ocp.state_from_measurement(
-            measured[0:3], measured[3:7], measured[7:10], self.limits.reachable
+            measured[0:3], measured[3:7], measured[7:10] - self.own_inertia, self.limits.reachable
         )
-        scale = self.column_scale
+        scale, offset = self.column_scale, self.state_offset
         x0[self.ocp.state.radii_sq] *= scale
+        x0[self.ocp.state.radii_sq] += offset
         z0, lam_g0, lam_z0 = self._warm_start(int(request.t_ns), x0)
-        lbz, ubz = self.ocp.variable_bounds(x0, scale)
-        lbg, ubg = self.ocp.constraint_bounds(x0, scale)
+        lbz, ubz = self.ocp.variable_bounds(x0, scale, offset)
+        lbg, ubg = self.ocp.constraint_bounds(x0, scale, offset)
         momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
         axis, _ = momentum_target(request.w_ref_rad_s, momentum_norm)
+        lowest, highest = axis_inertia_range(self.limits, axis)
+        own = float(np.asarray(axis) ** 2 @ self.own_inertia)  # e' (2 J) e [kg m^2]
         nominal = request.nominal_inertia_kg_m2
         return ProblemInstance(
             z0=z0,
@@ -448,7 +467,7 @@ class InertialMorphingMpc(Closable):
                 weights,
                 measured[7:10] if nominal is None else nominal,
                 momentum_norm=momentum_norm,
-                axis_inertia_range_kg_m2=axis_inertia_range(self.limits, axis),
+                axis_inertia_range_kg_m2=(lowest + own, highest + own),
             ),
             lbz=lbz,
             ubz=ubz,

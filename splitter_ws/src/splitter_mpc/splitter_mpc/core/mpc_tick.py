@@ -67,8 +67,9 @@ class MpcTickSettings:
     )
     estimated_masses: bool = parameter_field(
         False,
-        "plan with the masses /splitter/estimate/masses gives, stamped with each tick (the "
-        "flight estimator's; a tick waits for them), instead of the nominal model's",
+        "plan with the masses /splitter/estimate/masses and the hemi bodies' moments "
+        "/splitter/estimate/hemi_inertia give, stamped with each tick (the flight "
+        "estimator's; a tick waits for them), instead of the nominal model's",
     )
 
     @property
@@ -156,6 +157,17 @@ def controller_diagnostics(
 MAX_MASS_KG = 1.0e3  # [kg] a lumped mass beyond it is corrupt
 
 
+def checked_hemi_inertia(moments_kg_m2: ArrayLike) -> NDArray[np.float64]:
+    """A hemi body's own moments [kg m^2] if each is finite and within +-``MAX_MASS_KG``
+    kg m^2 (an estimate may dip below zero); ``MessageValidationError`` otherwise."""
+    j = np.asarray(moments_kg_m2, dtype=float)
+    if not np.all(np.abs(j) <= MAX_MASS_KG):  # NaN too
+        raise MessageValidationError(
+            f"vector: hemi body moments must be within +-{MAX_MASS_KG} kg m^2, got {j}"
+        )
+    return j
+
+
 def checked_masses(masses_kg: ArrayLike) -> NDArray[np.float64]:
     """(m_x, m_y, m_z) [kg] if each is in (0, ``MAX_MASS_KG``]; ``MessageValidationError``."""
     m = np.asarray(masses_kg, dtype=float)
@@ -188,7 +200,9 @@ class MpcTick:
         self._check_periods(self.settings, controller.config)
         self.has_publisher = has_publisher  # a gait manager in the graph is waited for
         self.tick_inputs = TICK_INPUTS + (
-            (names.ESTIMATE_MASSES,) if self.settings.estimated_masses else ()
+            (names.ESTIMATE_MASSES, names.ESTIMATE_HEMI_INERTIA)
+            if self.settings.estimated_masses
+            else ()
         )
         self.ticks = TickAssembler(controller.config.control_period_ns, self.tick_inputs)
         self.stamps = StampGate()
@@ -283,14 +297,19 @@ class MpcTick:
         clock_ns: ClockNs = None,
         *,
         masses_kg: ArrayLike | None = None,
+        hemi_inertia_kg_m2: ArrayLike | None = None,
     ) -> MpcAnswer | None:
         """Tick ``t_ns``'s state from plain values (the library loop); None: the tick waits.
 
-        ``masses_kg`` (m_x, m_y, m_z) when the tick takes estimated masses.
+        ``masses_kg`` (m_x, m_y, m_z) and ``hemi_inertia_kg_m2`` (a hemi body's own
+        moments) when the tick takes estimated masses.
         """
         rate = checked_rate("angular_velocity", angular_velocity_rad_s)
         if masses_kg is not None:
             self.add(names.ESTIMATE_MASSES, t_ns, np.asarray(masses_kg, dtype=float), clock_ns)
+        if hemi_inertia_kg_m2 is not None:
+            moments = np.asarray(hemi_inertia_kg_m2, dtype=float)
+            self.add(names.ESTIMATE_HEMI_INERTIA, t_ns, moments, clock_ns)
         self.add(names.IMU, t_ns, (rate, np.asarray(orientation_wxyz, dtype=float)), clock_ns)
         return self.add(names.INERTIA, t_ns, np.asarray(inertia_kg_m2, dtype=float), clock_ns)
 
@@ -320,7 +339,8 @@ class MpcTick:
         (w, q), inertia = inputs[names.IMU], inputs[names.INERTIA]  # type: ignore[misc]
         masses = inputs.get(names.ESTIMATE_MASSES)
         if masses is not None:
-            self.controller.set_mass_model(with_masses(self.controller.model, masses))
+            hemi = inputs.get(names.ESTIMATE_HEMI_INERTIA, np.zeros(3))
+            self.controller.set_mass_model(with_masses(self.controller.model, masses), hemi)
         self.latency.record("state", t_ns, clock_value(clock_ns))
         if self.settings.plan_from_setpoints and self._last_setpoint is not None:
             # the commands stamped ahead reach the last setpoint before this tick's does

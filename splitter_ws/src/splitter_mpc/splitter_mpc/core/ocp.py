@@ -457,26 +457,31 @@ class MorphingOcp:
         return np.asarray(states, dtype=float)[..., self.state.radii_sq] @ self.inertia_map.T
 
     def variable_bounds(
-        self, x_init: ArrayLike, column_scale: ArrayLike = (1.0, 1.0, 1.0)
+        self,
+        x_init: ArrayLike,
+        column_scale: ArrayLike = (1.0, 1.0, 1.0),
+        state_offset: ArrayLike = (0.0, 0.0, 0.0),
     ) -> tuple[NDArray, NDArray]:
         """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0.
 
-        ``column_scale`` D: the states carry ``D s`` (a robot with other masses,
+        ``column_scale`` D and ``state_offset`` c [m^2]: the states carry ``D s + c`` (a
+        robot with other masses and hemi bodies with their own moments,
         :meth:`~splitter_mpc.core.mpc.InertialMorphingMpc.set_mass_model`).
         """
         lim = self.limits
         d = np.asarray(column_scale, dtype=float)
+        c = np.asarray(state_offset, dtype=float)
         n, nx, radii_sq = self.horizon, self.state.nx, self.state.radii_sq
         x0 = np.asarray(x_init, dtype=float)
-        r_now = np.sqrt(x0[radii_sq] / d)
+        r_now = np.sqrt((x0[radii_sq] - c) / d)
         # both r_k and r_{k+1} are >= the smallest radius reachable by stage k + 1
         k = np.arange(1, n + 1)[:, None]
         r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
         rate = 2.0 * lim.radius_step_max_m * r_low * d  # (n, 3) [m^2] per step
         lo = np.full((n, nx + NU), -np.inf)
         hi = np.full((n, nx + NU), np.inf)
-        s_min = lim.reachable.radius_squared_min_m2 * d
-        s_max = lim.reachable.radius_squared_max_m2 * d
+        s_min = lim.reachable.radius_squared_min_m2 * d + c
+        s_max = lim.reachable.radius_squared_max_m2 * d + c
         lo[:, radii_sq] = s_min
         hi[:, radii_sq] = s_max
         lo[:, nx : nx + 3] = -rate
@@ -491,13 +496,17 @@ class MorphingOcp:
         return np.concatenate([lo.ravel(), lo_n]), np.concatenate([hi.ravel(), hi_n])
 
     def constraint_bounds(
-        self, x_init: ArrayLike, column_scale: ArrayLike = (1.0, 1.0, 1.0)
+        self,
+        x_init: ArrayLike,
+        column_scale: ArrayLike = (1.0, 1.0, 1.0),
+        state_offset: ArrayLike = (0.0, 0.0, 0.0),
     ) -> tuple[NDArray, NDArray]:
-        """(lbg, ubg): gaps = 0, tension rows (module docstring); ``column_scale`` as
-        in :meth:`variable_bounds`."""
+        """(lbg, ubg): gaps = 0, tension rows (module docstring); ``column_scale`` and
+        ``state_offset`` as in :meth:`variable_bounds`."""
         lim = self.limits
         n, nx = self.horizon, self.state.nx
         s_x = float(np.asarray(x_init, dtype=float)[self.state.radii_sq][0])
+        s_x -= float(np.asarray(state_offset, dtype=float)[0])
         r_x = float(np.sqrt(s_x / float(np.asarray(column_scale, dtype=float)[0])))
         k = np.arange(n)
         r_low = np.maximum(lim.radius_min_m[0], r_x - lim.radius_rate_max_m_s[0] * k * self.dt_s)
