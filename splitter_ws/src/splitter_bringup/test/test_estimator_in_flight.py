@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from splitter_bringup.figures.plots import plot_estimator
 from splitter_bringup.run.library import run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
@@ -78,7 +79,7 @@ def test_the_jumping_robot_with_errors_lands_on_its_own_sensors() -> None:
 
 
 @pytest.mark.parametrize("variant", ["hemi_bodies", "hemi_bodies_as_points"])
-def test_hemi_bodies_that_are_not_points_are_identified(variant: str) -> None:
+def test_hemi_bodies_that_are_not_points_are_identified(variant: str, tmp_path) -> None:
     """Each hemi body a 3 kg box with its own moments (0.03, 0.045, 0.04) kg m^2, 2 J_x =
     0.06 kg m^2 on an I_xx of ~0.5: taken for points, the estimator puts the difference
     into the bias (12 mrad/s off) and the masses (~30 %), and the tumble does not settle;
@@ -91,6 +92,8 @@ def test_hemi_bodies_that_are_not_points_are_identified(variant: str) -> None:
     bias_error = np.abs(bias - np.array(errors.gyro_bias_rad_s)).max()
     hemi = series.extras["estimate_hemi_inertia_kg_m2"][-1]
     w_end = series.angular_velocity_rad_s[-1]
+    figure = plot_estimator(series, errors, tmp_path / "estimator.png")
+    assert figure.stat().st_size > 0
     if variant == "hemi_bodies":
         assert hemi[0] == pytest.approx(errors.hemi_inertia_kg_m2[0], rel=0.02)
         assert bias_error < 0.001

@@ -289,14 +289,18 @@ def plot_gait(
 
 
 def plot_estimator(series: RunSeries, errors: RobotErrors, path: Path, title: str = "") -> Path:
-    """The flight estimator against the simulated robot: gyro bias, masses, rate error.
+    """The flight estimator against the simulated robot: gyro bias, masses, rate error,
+    and the hemi bodies' own moments when the robot or the estimator has them.
 
     Estimates solid, the simulated robot's values dashed in the same colour.
     """
     extras = series.extras
     t = extras["estimate_t_s"]
     plant = errors.plant_model(RobotModel())
-    fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+    hemi = extras.get("estimate_hemi_inertia_kg_m2")
+    bodies = hemi is not None and (any(errors.hemi_inertia_kg_m2) or bool(np.any(hemi)))
+    rows = 4 if bodies else 3
+    fig, axes = plt.subplots(rows, 1, figsize=(10, 3 * rows), sharex=True)
     ax = axes[0]
     for i, name in enumerate(AXES):
         (line,) = ax.plot(t, 1e3 * extras["estimate_gyro_bias_rad_s"][:, i], label=f"$b_{name}$")
@@ -316,7 +320,13 @@ def plot_estimator(series: RunSeries, errors: RobotErrors, path: Path, title: st
     for i, name in enumerate(AXES):
         ax.plot(t, 1e3 * rate_error[:, i], label=f"$\\hat\\omega_{name} - \\omega_{name}$")
     ax.set_ylabel("rate error [mrad/s]")
-    ax.set_xlabel("t [s]")
+    if bodies:
+        ax = axes[3]
+        for i, name in enumerate(AXES):
+            (line,) = ax.plot(t, np.asarray(hemi)[:, i], label=f"$J_{name}$")
+            ax.axhline(errors.hemi_inertia_kg_m2[i], ls="--", color=line.get_color(), alpha=0.7)
+        ax.set_ylabel("hemi body's own\nmoments [kg m$^2$]")
+    axes[-1].set_xlabel("t [s]")
     for ax in axes:
         ax.legend(loc="best", fontsize="small")
         ax.grid(True, alpha=0.3)
