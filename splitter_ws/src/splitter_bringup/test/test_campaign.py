@@ -303,3 +303,47 @@ def test_a_perturbed_draws_scenario_file_carries_its_robot_errors(tmp_path) -> N
     assert errors.mass_scale == draw.mass_scale and errors.noise_seed == draw.noise_seed
     plain = yaml.safe_load(yaml.safe_dump(scenario_document(base, draw, 8.0)))
     assert "robot_errors" not in plain
+
+
+def test_hemi_bodies_are_boxes_drawn_after_everything_else(tmp_path) -> None:
+    """``--hemi-bodies``: each body a solid box of m_x with edges in [e/2, e]; the other
+    numbers of a draw stay as they were, and its scenario file flies the same robot with
+    the estimator identifying the bodies."""
+    import yaml
+
+    from splitter_bringup.analysis.campaign import (
+        HEMI_INERTIA_PRIOR_KG_M2,
+        box_inertia,
+        estimator_for_draw,
+        robot_errors_for_draw,
+        scenario_document,
+    )
+    from splitter_bringup.scenario.definition import load_scenario
+
+    plain = PerturbationSpec(mass_fraction=0.1)
+    bodies = PerturbationSpec(mass_fraction=0.1, hemi_body_edge_m=0.35)
+    a, b = make_draw(5, 23, perturbation=plain), make_draw(5, 23, perturbation=bodies)
+    assert a.hemi_inertia_kg_m2 == (0.0, 0.0, 0.0)
+    assert (a.w0_rad_s, a.euler_deg, a.mass_scale, a.gyro_bias_rad_s, a.noise_seed) == (
+        b.w0_rad_s,
+        b.euler_deg,
+        b.mass_scale,
+        b.gyro_bias_rad_s,
+        b.noise_seed,
+    )
+    j = np.array(b.hemi_inertia_kg_m2)
+    m = 3.0 * b.mass_scale[0]  # [kg] the draw's body
+    # a box of edges within [0.175, 0.35] m: each moment within m (2 (e/2)^2, 2 e^2) / 12
+    assert np.all(j >= m * 2 * 0.175**2 / 12 - 1e-12) and np.all(j <= m * 2 * 0.35**2 / 12)
+    assert j[0] <= j[1] + j[2] and j[1] <= j[0] + j[2] and j[2] <= j[0] + j[1]
+    np.testing.assert_allclose(box_inertia(12.0, (1.0, 2.0, 3.0)), (13.0, 10.0, 5.0))
+    errors = robot_errors_for_draw(b, bodies)
+    assert errors.hemi_inertia_kg_m2 == b.hemi_inertia_kg_m2
+    base = load_scenario("spin_stabilization", "mpc")
+    assert estimator_for_draw(base, a) is base
+    flown = estimator_for_draw(base, b)
+    assert flown.estimator.hemi_inertia_prior_kg_m2 == HEMI_INERTIA_PRIOR_KG_M2
+    path = tmp_path / "draw.yaml"
+    path.write_text(yaml.safe_dump(scenario_document(base, b, 8.0, errors), sort_keys=False))
+    loaded = load_scenario(path, "mpc")
+    assert loaded.robot_errors == errors and loaded.estimator == flown.estimator

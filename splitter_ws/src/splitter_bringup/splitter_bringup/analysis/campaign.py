@@ -14,7 +14,9 @@ order from ``numpy.random.default_rng(seed)``:
    files' Euler angles (extrinsic xyz, degrees; the flight starts from those);
 4. the perturbations, drawn always (so switching one on never changes 1-3): mass
    factors of ``m_x, m_y, m_z`` uniform in ``[1 - p, 1 + p]``, a gyro bias uniform in
-   ``[-b, b]`` per axis, and the seed of the gyro noise.
+   ``[-b, b]`` per axis, the seed of the gyro noise, and each hemi body's box
+   edges (x, y, z) uniform in ``[e/2, e]``, whose moments about its centre with the
+   body's mass ``m_x`` are the body's own inertia (``m (b^2 + c^2) / 12``, ...).
 
 Everything else is the scenario's. A draw flies
 :func:`splitter_bringup.run.campaign.run_draw` (the library closed loop).
@@ -66,7 +68,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from splitter_bringup.analysis.summary import estimator_errors
+from splitter_bringup.analysis.summary import estimator_errors, hemi_inertia_error
 from splitter_bringup.scenario.definition import Scenario
 from splitter_model.model import RobotModel
 from splitter_sim.core.robot_errors import RobotErrors
@@ -81,6 +83,9 @@ DIVERGENCE_FACTOR = 10.0  # [-] |w| above this times |w(0)|: diverged
 # [N m] limbs, [N] tether: joint effort sensor noise of a draw with robot errors (~5 % of
 # the limbs' ~1 N m centripetal load in a 1 rad/s spin)
 DEFAULT_JOINT_EFFORT_NOISE = 0.05
+# [kg m^2] the estimator's prior std of each hemi body's own moment when a campaign
+# flies bodies that are not points (what an engineer who knows they are not sets)
+HEMI_INERTIA_PRIOR_KG_M2 = 0.05
 
 SUCCESS = "success"
 FAILURE_MODES = (
@@ -106,6 +111,8 @@ class PerturbationSpec:
     gyro_bias_rad_s: float = 0.0  # [rad/s] bias drawn uniform in +- this per axis
     actuator_lag_s: float = 0.0  # [s] first-order lag time constant of the joint commands
     command_latency_s: float = 0.0  # [s] delay of every joint command to the servos
+    # [m] hemi bodies with their own inertia: a box each, edges uniform in [e/2, e]
+    hemi_body_edge_m: float = 0.0
     # [N m] limbs, [N] tether: the joint effort sensors' noise, std per reading, in every
     # draw with robot errors (a sensor, not a perturbation: it does not make one)
     joint_effort_noise: float = DEFAULT_JOINT_EFFORT_NOISE
@@ -141,6 +148,8 @@ class Draw:
     mass_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)  # [-] m_x, m_y, m_z factors
     gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad/s] body frame
     noise_seed: int = 0  # of the gyro noise
+    # [kg m^2] each hemi body's own principal moments (zero: the paper's points)
+    hemi_inertia_kg_m2: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def w0_norm_rad_s(self) -> float:
@@ -172,6 +181,8 @@ def make_draw(
     mass_u = rng.uniform(-1.0, 1.0, 3)
     bias_u = rng.uniform(-1.0, 1.0, 3)
     noise_seed = int(rng.integers(0, 2**31 - 1))
+    edges = p.hemi_body_edge_m * rng.uniform(0.5, 1.0, 3)  # [m] x, y, z
+    body_mass = RobotModel().body_mass_kg * (1.0 + p.mass_fraction * mass_u[0])  # [kg]
     return Draw(
         index=int(index),
         seed=int(seed),
@@ -180,7 +191,15 @@ def make_draw(
         mass_scale=_triple(1.0 + p.mass_fraction * mass_u),
         gyro_bias_rad_s=_triple(p.gyro_bias_rad_s * bias_u + 0.0),  # (no -0.0)
         noise_seed=noise_seed,
+        hemi_inertia_kg_m2=box_inertia(body_mass, edges),
     )
+
+
+def box_inertia(mass_kg: float, edges_m: ArrayLike) -> tuple[float, float, float]:
+    """Principal moments [kg m^2] of a solid box of ``mass_kg`` with edges (a, b, c) [m]
+    along x, y, z about its centre: ``m (b^2 + c^2) / 12``, ... ."""
+    a2, b2, c2 = (float(e) ** 2 for e in np.asarray(edges_m, dtype=float).reshape(3))
+    return _triple(mass_kg / 12.0 * np.array([b2 + c2, a2 + c2, a2 + b2]))
 
 
 def draw_campaign(
@@ -228,6 +247,17 @@ def robot_errors_for_draw(draw: Draw, spec: PerturbationSpec | None = None) -> R
         command_latency_s=p.command_latency_s,
         joint_effort_noise=p.joint_effort_noise,
         noise_seed=draw.noise_seed,
+        hemi_inertia_kg_m2=draw.hemi_inertia_kg_m2,
+    )
+
+
+def estimator_for_draw(base: Scenario, draw: Draw) -> Scenario:
+    """``base`` whose estimator identifies the hemi bodies' moments when the draw has
+    bodies (prior std ``HEMI_INERTIA_PRIOR_KG_M2``); otherwise ``base`` unchanged."""
+    if not any(draw.hemi_inertia_kg_m2):
+        return base
+    return replace(
+        base, estimator=replace(base.estimator, hemi_inertia_prior_kg_m2=HEMI_INERTIA_PRIOR_KG_M2)
     )
 
 
@@ -265,6 +295,10 @@ def scenario_document(
         doc["robot_errors"] = {
             k: list(v) if isinstance(v, tuple) else v for k, v in asdict(robot_errors).items()
         }
+        if any(robot_errors.hemi_inertia_kg_m2):
+            estimator = dict(doc.get("estimator") or {})
+            estimator["hemi_inertia_prior_kg_m2"] = HEMI_INERTIA_PRIOR_KG_M2
+            doc["estimator"] = estimator
     return doc
 
 
@@ -369,6 +403,8 @@ class DrawResult:
     gyro_bias_error_rad_s: float = math.nan  # [rad/s] largest |b_est - b_true| per axis
     mass_ratio_error: float = math.nan  # [-] largest |r_est / r_true - 1| of m_y/m_x, m_z/m_x
     mass_error: float = math.nan  # [-] largest |m_est / m_true - 1| of m_x, m_y, m_z
+    # [kg m^2] |J_x,est - J_x| of a hemi body's own moment about the tether axis
+    hemi_inertia_error_kg_m2: float = math.nan
 
     @property
     def outcome(self) -> str:
@@ -389,9 +425,12 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         deadline_misses=misses,
     )
     w_end = series.angular_velocity_rad_s[-1] if n else (math.nan,) * 3
-    bias_error, ratio_error, mass_error = estimator_errors(
-        series, RobotErrors(mass_scale=draw.mass_scale, gyro_bias_rad_s=draw.gyro_bias_rad_s)
+    errors = RobotErrors(
+        mass_scale=draw.mass_scale,
+        gyro_bias_rad_s=draw.gyro_bias_rad_s,
+        hemi_inertia_kg_m2=draw.hemi_inertia_kg_m2,
     )
+    bias_error, ratio_error, mass_error = estimator_errors(series, errors)
     return DrawResult(
         draw=draw,
         success=result.success,
@@ -405,6 +444,9 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         gyro_bias_error_rad_s=bias_error,
         mass_ratio_error=ratio_error,
         mass_error=mass_error,
+        hemi_inertia_error_kg_m2=(
+            hemi_inertia_error(series, errors) if any(draw.hemi_inertia_kg_m2) else math.nan
+        ),
     )
 
 
@@ -588,6 +630,10 @@ CSV_COLUMNS = (
     "gyro_bias_error_rad_s",
     "mass_ratio_error",
     "mass_error",
+    "hemi_inertia_x_kg_m2",
+    "hemi_inertia_y_kg_m2",
+    "hemi_inertia_z_kg_m2",
+    "hemi_inertia_error_kg_m2",
 )
 
 
@@ -618,6 +664,8 @@ def csv_row(result: DrawResult) -> dict[str, Any]:
                 _csv_number(result.gyro_bias_error_rad_s),
                 _csv_number(result.mass_ratio_error),
                 _csv_number(result.mass_error),
+                *(repr(v) for v in d.hemi_inertia_kg_m2),
+                _csv_number(result.hemi_inertia_error_kg_m2),
             ),
             strict=True,
         )

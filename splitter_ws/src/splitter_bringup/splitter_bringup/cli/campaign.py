@@ -70,6 +70,7 @@ DEFAULT_GYRO_NOISE_RAD_S = 0.002  # [rad/s] per reading (100 Hz): a MEMS rate gy
 DEFAULT_GYRO_BIAS_RAD_S = 0.005  # [rad/s] per axis, an uncalibrated MEMS turn-on bias
 DEFAULT_ACTUATOR_LAG_S = 0.05  # [s]
 DEFAULT_COMMAND_LATENCY_S = 0.02  # [s] a servo bus and a network hop
+DEFAULT_HEMI_BODY_EDGE_M = 0.35  # [m] a 3 kg body of up to 0.35 m a side
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -153,6 +154,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"(flag alone: {DEFAULT_COMMAND_LATENCY_S})",
     )
     perturb.add_argument(
+        "--hemi-bodies",
+        type=float,
+        nargs="?",
+        const=DEFAULT_HEMI_BODY_EDGE_M,
+        default=0.0,
+        metavar="EDGE",
+        help="hemi bodies that are not points: each a solid box of m_x with edges uniform "
+        "in [EDGE/2, EDGE] [m]; the estimator then identifies their moments "
+        f"(flag alone: {DEFAULT_HEMI_BODY_EDGE_M})",
+    )
+    perturb.add_argument(
         "--effort-noise",
         type=float,
         default=DEFAULT_JOINT_EFFORT_NOISE,
@@ -190,6 +202,7 @@ def _spec(args: argparse.Namespace) -> PerturbationSpec:
         gyro_bias_rad_s=args.imu_bias,
         actuator_lag_s=args.actuator_lag,
         command_latency_s=args.command_latency,
+        hemi_body_edge_m=args.hemi_bodies,
         joint_effort_noise=args.effort_noise,
         estimator=not args.no_estimator,
     )
@@ -217,6 +230,7 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
         ("--imu-bias", args.imu_bias),
         ("--actuator-lag", args.actuator_lag),
         ("--command-latency", args.command_latency),
+        ("--hemi-bodies", args.hemi_bodies),
     ):
         if value > 0.0:
             words += [flag, repr(value)]

@@ -22,6 +22,7 @@ from splitter_bringup.analysis.campaign import (
     PerturbationSpec,
     draw_result,
     error_result,
+    estimator_for_draw,
     robot_errors_for_draw,
 )
 from splitter_bringup.analysis.series import RunSeries
@@ -44,12 +45,16 @@ def fly_draw(
     ``scenario`` is already set to the draw (:func:`scenario_for_draw`); the draw's
     robot errors (:func:`robot_errors_for_draw`) are flown by its simulator, and the
     controllers then fly on the flight estimator unless ``perturbation.estimator`` is
-    False. The library backend (:func:`splitter_bringup.run.backends.run`): the closed
-    loop with the scenario's MPC, a fresh controller and solver worker, so that a draw
-    never depends on the ones flown before it.
+    False; with hemi bodies the estimator identifies their moments
+    (:func:`estimator_for_draw`). The library backend
+    (:func:`splitter_bringup.run.backends.run`): the closed loop with the scenario's MPC,
+    a fresh controller and solver worker, so that a draw never depends on the ones flown
+    before it.
     """
     spec = perturbation or PerturbationSpec()
     flown = replace(scenario, robot_errors=robot_errors_for_draw(draw, spec))
+    if spec.estimator:
+        flown = estimator_for_draw(flown, draw)
     return run(flown, LIBRARY, estimator=None if spec.estimator else False)
 
 
