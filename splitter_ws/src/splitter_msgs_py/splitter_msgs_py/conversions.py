@@ -147,32 +147,40 @@ def imu_to_msg(
     frame_id: str = names.BASE_FRAME,
     *,
     angular_velocity_variance: float = 0.0,
+    linear_acceleration_variance: float = 0.0,
 ) -> Imu:
     """sensor_msgs/Imu.
 
-    ``angular_velocity_variance`` [rad^2/s^2], per axis, goes on the diagonal of
-    ``angular_velocity_covariance``; the other covariances are unknown: zero, as
-    REP 145 allows for simulation (and so is that one when 0).
+    ``angular_velocity_variance`` [rad^2/s^2] and ``linear_acceleration_variance``
+    [m^2/s^4], per axis, go on the diagonals of their covariances; the orientation's is
+    unknown: zero, as REP 145 allows for simulation (and so are those when 0).
     """
     msg = _stamped(Imu, t_ns, frame_id)
     _set_quaternion(msg.orientation, unit_quaternion(orientation_wxyz))
     _set_vector3(
         msg.angular_velocity, _finite_vector(angular_velocity_rad_s, 3, "angular_velocity")
     )
-    if angular_velocity_variance != 0.0:
-        variance = float(angular_velocity_variance)
-        if not (math.isfinite(variance) and variance > 0.0):
-            raise MessageValidationError(
-                f"angular_velocity_covariance: variance must be finite and >= 0, got {variance!r}"
-            )
-        msg.angular_velocity_covariance[0] = variance
-        msg.angular_velocity_covariance[4] = variance
-        msg.angular_velocity_covariance[8] = variance
+    _set_variance(msg.angular_velocity_covariance, angular_velocity_variance, "angular_velocity")
     _set_vector3(
         msg.linear_acceleration,
         _finite_vector(linear_acceleration_m_s2, 3, "linear_acceleration"),
     )
+    _set_variance(
+        msg.linear_acceleration_covariance, linear_acceleration_variance, "linear_acceleration"
+    )
     return msg
+
+
+def _set_variance(covariance, variance: float, name: str) -> None:
+    """``variance`` on the diagonal of a 3 x 3 covariance (row-major); 0 leaves it zero."""
+    if variance == 0.0:
+        return
+    value = float(variance)
+    if not (math.isfinite(value) and value > 0.0):
+        raise MessageValidationError(
+            f"{name}_covariance: variance must be finite and >= 0, got {value!r}"
+        )
+    covariance[0] = covariance[4] = covariance[8] = value
 
 
 def imu_from_msg(msg: Imu) -> ImuSample:

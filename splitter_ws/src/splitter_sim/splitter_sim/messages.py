@@ -149,6 +149,11 @@ def state_messages(
         ranges, leg_forces = readings.ranges_m, readings.leg_forces_n
     inertia = cv.vector3_to_msg(t, state.principal_inertia_kg_m2, names.BASE_FRAME)
     acceleration = state.linear_acceleration_m_s2
+    if readings is None:
+        accelerometer, accelerometer_noise = acceleration, 0.0
+    else:
+        accelerometer = readings.specific_force_m_s2
+        accelerometer_noise = readings.accelerometer_noise_m_s2
     return [
         (names.CLOCK, cv.clock_to_msg(t)),
         (
@@ -190,6 +195,13 @@ def state_messages(
         (names.TRUTH_IMU, cv.imu_to_msg(t, q, w, acceleration)),
         (
             names.IMU,
-            cv.imu_to_msg(t, q, gyro, acceleration, angular_velocity_variance=gyro_noise**2),
+            cv.imu_to_msg(
+                t,
+                q,
+                gyro,
+                accelerometer,
+                angular_velocity_variance=gyro_noise**2,
+                linear_acceleration_variance=accelerometer_noise**2,
+            ),
         ),
     ]

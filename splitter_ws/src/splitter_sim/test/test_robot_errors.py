@@ -43,6 +43,7 @@ CONTROL_NS = 10_000_000  # [ns]
         ({"range_noise_m": -0.01}, "range_noise_m"),
         ({"command_latency_s": -0.01}, "command_latency_s"),
         ({"leg_force_noise_n": math.inf}, "leg_force_noise_n"),
+        ({"accelerometer_noise_m_s2": -0.1}, "accelerometer_noise_m_s2"),
         ({"noise_seed": -1}, "noise_seed"),
         ({"noise_seed": 1.5}, "noise_seed"),
         ({"noise_seed": True}, "noise_seed"),
@@ -221,3 +222,39 @@ def test_the_plant_has_the_hemi_bodies_own_inertia() -> None:
         (0.06, 0.09, 0.08),
         rtol=1e-9,
     )
+
+
+def test_the_accelerometer_reads_the_specific_force_with_its_noise() -> None:
+    """The IMU's accelerometer: the true specific force plus noise, once per simulated
+    time, on /splitter/imu with its variance; the truth on /splitter/truth/imu."""
+    from splitter_msgs_py import names
+    from splitter_sim.messages import state_messages
+
+    errors = RobotErrors(accelerometer_noise_m_s2=0.05, gyro_noise_rad_s=0.01, noise_seed=5)
+    tick = _tick(errors)
+    readings = [tick.readings(tick.state())]
+    for _ in range(199):
+        tick.step()
+        readings.append(tick.readings(tick.state()))
+    state = tick.state()
+    np.testing.assert_array_equal(
+        tick.readings(state).specific_force_m_s2, readings[-1].specific_force_m_s2
+    )
+    noise = np.array([r.specific_force_m_s2 for r in readings])  # free fall in zero G: 0
+    assert 0.04 < float(np.std(noise)) < 0.06 and abs(float(np.mean(noise))) < 0.01
+    messages = dict(state_messages(state, readings[-1]))
+    imu, truth = messages[names.IMU], messages[names.TRUTH_IMU]
+    a = imu.linear_acceleration
+    np.testing.assert_array_equal([a.x, a.y, a.z], readings[-1].specific_force_m_s2)
+    assert imu.linear_acceleration_covariance[0] == pytest.approx(0.05**2)
+    t = truth.linear_acceleration
+    np.testing.assert_array_equal([t.x, t.y, t.z], state.linear_acceleration_m_s2)
+    # the gyro's draws do not depend on the accelerometer (its own generator)
+    alone = _tick(RobotErrors(gyro_noise_rad_s=0.01, noise_seed=5))
+    first = _tick(errors)
+    np.testing.assert_array_equal(
+        alone.gyro_reading(alone.state()), first.gyro_reading(first.state())
+    )
+    exact = _tick(RobotErrors())
+    s = exact.state()
+    np.testing.assert_array_equal(exact.readings(s).specific_force_m_s2, s.linear_acceleration_m_s2)

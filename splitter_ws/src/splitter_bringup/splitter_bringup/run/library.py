@@ -192,7 +192,7 @@ def run_closed_loop(
                 )
                 estimate = flight.on_sensors(
                     t,
-                    GyroSample(gyro, q_measured, state.linear_acceleration_m_s2),
+                    GyroSample(gyro, q_measured, readings.specific_force_m_s2),
                     joints,
                     readings.leg_forces_n,
                 )
@@ -203,7 +203,7 @@ def run_closed_loop(
                 hemi = estimate.hemi_inertia_kg_m2
             answer = gait.on_sensors(
                 t,
-                ImuReading(q_measured, gyro, state.linear_acceleration_m_s2),
+                ImuReading(q_measured, gyro, readings.specific_force_m_s2),
                 readings.ranges_m,
                 readings.leg_forces_n,
                 float(state.joint_position[TETHER_INDEX]),

@@ -19,9 +19,10 @@ as it really is. :class:`RobotErrors` says how that robot is wrong:
 * ``command_latency_s``: every joint and tether command reaches the servos this much
   after its stamp (a pure delay, before the lag), the way a bus or a network delays
   it;
-* ``joint_effort_noise``, ``range_noise_m``, ``leg_force_noise_n``: the joint
-  effort sensors of ``/splitter/joint_states`` (limb torques [N m], the reel's
-  tether tension [N]), the hemis' rangefinders and their legs' load cells read the
+* ``joint_effort_noise``, ``range_noise_m``, ``leg_force_noise_n``,
+  ``accelerometer_noise_m_s2``: the joint effort sensors of ``/splitter/joint_states``
+  (limb torques [N m], the reel's tether tension [N]), the hemis' rangefinders, their
+  legs' load cells and the IMU's accelerometer (the specific force, base frame) read the
   truth plus white Gaussian noise of this standard deviation per reading
   (:class:`SensorNoise`, each sensor from its own generator so that the gyro's
   draws do not depend on them).
@@ -100,6 +101,11 @@ class RobotErrors:
         "robot errors: white noise of each leg load cell reading, std per axis [N]",
         bounds=(0.0, 1000.0),
     )
+    accelerometer_noise_m_s2: float = parameter_field(
+        0.0,
+        "robot errors: white noise of the IMU's accelerometer, std per axis and reading [m/s^2]",
+        bounds=(0.0, 100.0),
+    )
     noise_seed: int = parameter_field(
         0, "robot errors: seed of the sensors' noise [-]", bounds=(0, SEED_MAX)
     )
@@ -112,6 +118,7 @@ class RobotErrors:
             "joint_effort_noise",
             "range_noise_m",
             "leg_force_noise_n",
+            "accelerometer_noise_m_s2",
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -148,6 +155,7 @@ class RobotErrors:
             or self.joint_effort_noise > 0.0
             or self.range_noise_m > 0.0
             or self.leg_force_noise_n > 0.0
+            or self.accelerometer_noise_m_s2 > 0.0
         )
 
     def plant_model(self, nominal: RobotModel) -> RobotModel:
@@ -205,7 +213,7 @@ class SensorNoise:
     Without noise nothing is drawn and the reading is the truth itself.
     """
 
-    EFFORT, RANGE, LEG_FORCE = 1, 2, 3  # the streams
+    EFFORT, RANGE, LEG_FORCE, ACCELEROMETER = 1, 2, 3, 4  # the streams
 
     def __init__(self, std: float, seed: int, stream: int) -> None:
         self.std = float(std)

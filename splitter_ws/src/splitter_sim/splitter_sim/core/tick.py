@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -127,6 +127,9 @@ class SensorReadings:
     joint_effort: NDArray[np.float64]  # (25,) limbs [N m], tether [N]
     ranges_m: NDArray[np.float64]  # (2,) the hemis' rangefinders [m], float32 as sent
     leg_forces_n: NDArray[np.float64]  # (2, 3) the hemis' leg load cells, base [N]
+    # (3,) the IMU's accelerometer: the specific force at the COM, base [m/s^2]
+    specific_force_m_s2: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    accelerometer_noise_m_s2: float = 0.0  # [m/s^2] its noise std (its datasheet)
 
 
 @dataclass(frozen=True)
@@ -182,6 +185,10 @@ class SimulatorTick:
             "range": [SensorNoise(e.range_noise_m, e.noise_seed, SensorNoise.RANGE), None],
             "leg_force": [
                 SensorNoise(e.leg_force_noise_n, e.noise_seed, SensorNoise.LEG_FORCE),
+                None,
+            ],
+            "accelerometer": [
+                SensorNoise(e.accelerometer_noise_m_s2, e.noise_seed, SensorNoise.ACCELEROMETER),
                 None,
             ],
         }
@@ -381,6 +388,10 @@ class SimulatorTick:
             joint_effort=self.joint_effort_reading(state),
             ranges_m=self.range_reading(state).astype(np.float32).astype(float),
             leg_forces_n=self.leg_force_reading(state),
+            specific_force_m_s2=self._reading(
+                "accelerometer", state, lambda: state.linear_acceleration_m_s2
+            ),
+            accelerometer_noise_m_s2=self.errors.accelerometer_noise_m_s2,
         )
 
     def publishable_state(self) -> SimState | None:
