@@ -7,6 +7,7 @@ what recovery must give back.
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 from mcap.exceptions import EndOfFile
@@ -22,6 +23,6 @@ def complete_chunk_messages(path: Path) -> list[Message]:
             for record in StreamReader(f, emit_chunks=True).records:
                 if isinstance(record, Chunk):
                     out.extend(r for r in breakup_chunk(record) if isinstance(r, Message))
-        except EndOfFile:  # the torn end
+        except (EndOfFile, struct.error):  # the torn end, inside a record or its length
             pass
     return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import array
 import os
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -207,7 +208,40 @@ def test_writer_refuses_misuse(tmp_path: Path) -> None:
     assert check_consistency(bag_dir).ok
 
 
-def test_recover_torn_file_keeps_every_closed_chunk(tmp_path: Path) -> None:
+def record_spans(data: bytes) -> list[tuple[int, int]]:
+    """(start, end) of each MCAP record after the leading magic: opcode, u64 length, body."""
+    spans, at = [], 8
+    while at + 9 <= len(data):
+        (length,) = struct.unpack_from("<Q", data, at + 1)
+        spans.append((at, at + 9 + length))
+        at += 9 + length
+    return spans
+
+
+def test_a_cut_anywhere_in_a_record_is_a_torn_end(tmp_path: Path) -> None:
+    """Cut inside the opcode, the length and the body of each record after the header.
+
+    (A file cut inside its header is not an MCAP file; recovery refuses it.)
+    """
+    messages = sample_messages(60)
+    bag_dir = tmp_path / "whole"
+    write_bag(bag_dir, messages, WriterOptions(chunk_size_bytes=2048))
+    data = (bag_dir / "whole_0.mcap").read_bytes()
+    spans = record_spans(data)[1:17]
+    assert len(spans) == 16
+    for i, (start, end) in enumerate(spans):
+        for cut in sorted({start + 1, start + 5, (start + end) // 2, end - 1}):
+            torn = tmp_path / f"torn_{i}_{cut}"
+            torn.mkdir()
+            (torn / f"{torn.name}_0.mcap").write_bytes(data[:cut])
+            survivors = complete_chunk_messages(torn / f"{torn.name}_0.mcap")
+            recover_bag(torn)
+            got = list(read_messages(torn))
+            assert [m.data for m in got] == [m.data for m in survivors], (i, cut)
+
+
+@pytest.mark.parametrize("kept_fraction", [0.35, 0.6, 0.61, 0.8])
+def test_recover_torn_file_keeps_every_closed_chunk(tmp_path: Path, kept_fraction: float) -> None:
     messages = sample_messages(300)
     bag_dir = tmp_path / "torn"
     write_bag(bag_dir, messages, WriterOptions(chunk_size_bytes=8192))
@@ -215,7 +249,9 @@ def test_recover_torn_file_keeps_every_closed_chunk(tmp_path: Path) -> None:
     os.remove(bag_dir / "metadata.yaml")
     data = path.read_bytes()
     # Cut in the middle of the data section, as a SIGKILL mid-chunk leaves it.
-    path.write_bytes(data[: int(len(data) * 0.6)])
+    # Where the cut falls (a chunk, a message index, a record's length) depends on
+    # the compressed sizes, so several places are cut.
+    path.write_bytes(data[: int(len(data) * kept_fraction)])
     survivors = complete_chunk_messages(path)
     assert 0 < len(survivors) < len(messages)
 
