@@ -21,6 +21,19 @@ robot rests crouched, ready to push) and a strong damper make a touchdown an
 almost constant-force stop at ``force_max``: 9 kg from 3.9 m/s within the 0.4 m
 stroke at 190 N. The lumped masses touch the ground only when a leg is fully
 compressed (the spring-damper ground of :mod:`splitter_sim.core.rigid_body`).
+
+Legs act where they point. A hemi's legs are mounted under its belly: they reach
+along the hemi's leg axis, body ``-z`` (the robot stands with body ``+z`` up), and
+push the body along body ``+z``. They reach the ground only while the belly faces
+it: the angle between body ``+z`` and the ground normal must stay within the
+workspace cone ``cone_half_angle_deg`` (default 60 deg, README "Legs that act where
+they point": a leg of the paper's 0.4 m clears the edge of a 0.2 m half-wide body
+while ``90 deg - asin(0.2 / 0.4)``). Outside the cone the legs neither push nor
+absorb: the hemi lands on its body, the stiff ground of the lumped masses. Tilted
+within the cone, the compression is measured along the leg axis and the law above
+acts along it; the ground then takes the force only within its friction cone (the
+feet slip beyond: the force's part along the ground is cut to ``mu`` times its
+part along the normal).
 """
 
 from __future__ import annotations
@@ -38,6 +51,7 @@ class LegImpedance:
     tangential_damping_n_s_m: float  # c_t [N s/m] horizontal
     friction_coefficient: float  # mu [-] of the feet on the ground
     force_max_n: float  # [N] largest norm of the stance force
+    cone_half_angle_deg: float = 60.0  # [deg] workspace: belly normal to ground normal
 
     def __post_init__(self) -> None:
         for name in (
@@ -53,21 +67,83 @@ class LegImpedance:
             raise ValueError(
                 f"LegImpedance.force_max_n must be finite and > 0, got {self.force_max_n}"
             )
+        if not (math.isfinite(self.cone_half_angle_deg) and 0.0 < self.cone_half_angle_deg < 90.0):
+            raise ValueError(
+                "LegImpedance.cone_half_angle_deg must be in (0, 90) deg, "
+                f"got {self.cone_half_angle_deg!r}"
+            )
+
+    @property
+    def cone_cos(self) -> float:
+        """Cosine of the workspace cone's half angle [-]."""
+        return math.cos(math.radians(self.cone_half_angle_deg))
+
+
+def legs_face_ground(belly_up_z: float, legs: LegImpedance) -> bool:
+    """Whether a hemi whose body ``+z`` has world component ``belly_up_z`` (the cosine of
+    its tilt from the ground normal) has its legs within their workspace cone."""
+    return belly_up_z >= legs.cone_cos
+
+
+def leg_compression_m(stroke_m: float, lowest_height_m: float, belly_up_z: float) -> float:
+    """Compression [m] of legs of ``stroke_m`` reaching along the leg axis from a hemi whose
+    lowest mass is ``lowest_height_m`` above the ground (<= 0: the feet do not touch).
+
+    The ground lies ``lowest_height_m / belly_up_z`` away along the tilted leg axis.
+    """
+    if belly_up_z <= 0.0:
+        return 0.0
+    return stroke_m - lowest_height_m / belly_up_z
 
 
 def leg_stance_force(
     compression_m: float,
     velocity_world_m_s: tuple[float, float, float],
     legs: LegImpedance,
+    belly_up: tuple[float, float, float] = (0.0, 0.0, 1.0),
 ) -> tuple[float, float, float]:
     """World force [N] of a hemi's legs compressed by ``compression_m`` (<= 0: no contact).
 
-    ``velocity_world_m_s`` is the hemi body's velocity [m/s]. Module docstring
-    for the law; the result's norm never exceeds ``legs.force_max_n``.
+    ``velocity_world_m_s`` is the hemi body's velocity [m/s], ``belly_up`` the hemi's
+    body ``+z`` in the world (unit; the legs push along it). Module docstring for
+    the law; the result's norm never exceeds ``legs.force_max_n`` and the result
+    stays within the ground's friction cone.
     """
     if compression_m <= 0.0:
         return 0.0, 0.0, 0.0
     vx, vy, vz = velocity_world_m_s
+    nx, ny, nz = belly_up
+    if nx == 0.0 and ny == 0.0:  # level: the leg axis is the ground normal
+        return _level_stance_force(compression_m, vx, vy, vz, legs)
+    v_n = vx * nx + vy * ny + vz * nz
+    normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * v_n
+    normal = min(max(normal, 0.0), legs.force_max_n)
+    if normal == 0.0:
+        return 0.0, 0.0, 0.0
+    tx, ty, tz = vx - v_n * nx, vy - v_n * ny, vz - v_n * nz  # across the leg axis
+    speed_t = math.sqrt(tx * tx + ty * ty + tz * tz)
+    fx, fy, fz = normal * nx, normal * ny, normal * nz
+    if speed_t > 0.0:
+        tangential = min(
+            legs.tangential_damping_n_s_m * speed_t,
+            math.sqrt(max(legs.force_max_n * legs.force_max_n - normal * normal, 0.0)),
+        )
+        scale = -tangential / speed_t
+        fx, fy, fz = fx + scale * tx, fy + scale * ty, fz + scale * tz
+    if fz <= 0.0:  # the feet cannot pull on the ground
+        return 0.0, 0.0, 0.0
+    along_ground = math.hypot(fx, fy)
+    cone = legs.friction_coefficient * fz
+    if along_ground > cone:  # the feet slip: the ground holds mu times the normal part
+        cut = cone / along_ground
+        fx, fy = fx * cut, fy * cut
+    return fx, fy, fz
+
+
+def _level_stance_force(
+    compression_m: float, vx: float, vy: float, vz: float, legs: LegImpedance
+) -> tuple[float, float, float]:
+    """:func:`leg_stance_force` of a level hemi (the leg axis is the ground normal)."""
     normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * vz
     normal = min(max(normal, 0.0), legs.force_max_n)
     if normal == 0.0:

@@ -47,7 +47,12 @@ from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
 from splitter_sim.core.contact import contact_reach_m, mass_heights_m
-from splitter_sim.core.legs import LegImpedance, leg_stance_force
+from splitter_sim.core.legs import (
+    LegImpedance,
+    leg_compression_m,
+    leg_stance_force,
+    legs_face_ground,
+)
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
     angular_velocity,
@@ -101,6 +106,19 @@ _NON_NEGATIVE = (
     "knot_blend_s",
 )
 _BOOLEAN = ("ground_contact", "compliant_legs")
+
+
+def _finite_force(value: ArrayLike, what: str) -> tuple[float, float, float]:
+    """``value`` as a force (3 finite numbers); ValueError naming ``what`` otherwise."""
+    f = np.array(value, dtype=float).reshape(-1)
+    if f.shape != (3,) or not np.all(np.isfinite(f)):
+        raise ValueError(f"{what} must be 3 finite numbers, got {value!r}")
+    return float(f[0]), float(f[1]), float(f[2])
+
+
+def _belly_up_z(s: list[float]) -> float:
+    """World z of the body's +z axis (the hemis' belly normal) in state ``s`` [-]."""
+    return rotation_matrix(s[6], s[7], s[8], s[9])[8]
 
 
 @dataclass(frozen=True)
@@ -159,6 +177,13 @@ class SimConfig:
     leg_force_max_n: float = parameter_field(
         190.0, "largest stance force of a hemi's legs (the limbs' limit) [N]", bounds=(1e-3, 1e5)
     )
+    # splitter_sim.core.legs: a 0.4 m leg clears a 0.2 m half-wide body up to 90 - 30 deg.
+    leg_cone_half_angle_deg: float = parameter_field(
+        60.0,
+        "workspace cone of the legs: largest angle between a hemi's belly normal (body +z) "
+        "and the ground normal at which its legs reach the ground and push [deg]",
+        bounds=(1.0, 89.0),
+    )
     # Lockstep: a point every control period. Real time: long enough for a late point
     # (actuators.command_target).
     command_extrapolation_s: float = parameter_field(
@@ -184,6 +209,11 @@ class SimConfig:
             _boolean(name, getattr(self, name))
         if self.dt_s > 0.1:
             raise ValueError(f"SimConfig.dt_s must be <= 0.1 s, got {self.dt_s!r}")
+        cone = self.leg_cone_half_angle_deg
+        if not (isinstance(cone, (int, float)) and 1.0 <= cone <= 89.0):
+            raise ValueError(
+                f"SimConfig.leg_cone_half_angle_deg must be in [1, 89] deg, got {cone!r}"
+            )
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
         if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
@@ -201,6 +231,7 @@ class SimConfig:
             tangential_damping_n_s_m=self.leg_tangential_damping_n_s_m,
             friction_coefficient=self.friction_coefficient,
             force_max_n=self.leg_force_max_n,
+            cone_half_angle_deg=self.leg_cone_half_angle_deg,
         )
 
     @property
@@ -400,6 +431,8 @@ class Simulator:
         )
         self._jump_force = (0.0, 0.0, 0.0)
         self._jump_hemi: str = "auto"
+        # Per-hemi thrusts (a, b) of a push by both hemis at once, else None.
+        self._jump_per_hemi: tuple[tuple[float, float, float], ...] | None = None
         self._t_ns = 0
         self._dt_ns = config.dt_ns
         self._dt = self._dt_ns * 1e-9
@@ -500,13 +533,25 @@ class Simulator:
         the COM) while that hemi is within ``SimConfig.thrust_stroke_m`` of the
         ground; "auto" splits it equally over the hemis within reach. Zero = no thrust.
         """
-        f = np.array(force_world_n, dtype=float).reshape(-1)
-        if f.shape != (3,) or not np.all(np.isfinite(f)):
-            raise ValueError(f"jump force must be 3 finite numbers, got {force_world_n!r}")
+        f = _finite_force(force_world_n, "jump force")
         if hemi not in ("a", "b", "auto"):
             raise ValueError(f"jump hemi must be 'a', 'b' or 'auto', got {hemi!r}")
-        self._jump_force = (float(f[0]), float(f[1]), float(f[2]))
+        self._jump_force = f
         self._jump_hemi = hemi
+        self._jump_per_hemi = None
+
+    def command_jump_forces(self, force_a_world_n: ArrayLike, force_b_world_n: ArrayLike) -> None:
+        """Both hemis push at once, each its own thrust [N] (world frame).
+
+        Each hemi's legs push its force on its body while they reach the ground
+        (within the stroke and facing it); a hemi that leaves its stroke stops
+        pushing, the other goes on with its own force.
+        """
+        fa = _finite_force(force_a_world_n, "jump force of hemi a")
+        fb = _finite_force(force_b_world_n, "jump force of hemi b")
+        self._jump_force = (fa[0] + fb[0], fa[1] + fb[1], fa[2] + fb[2])
+        self._jump_hemi = "auto"
+        self._jump_per_hemi = (fa, fb)
 
     def preview_next_point(self, stamp_ns: int, velocity: ArrayLike) -> None:
         """The next joint command point, known ahead (stamped ``stamp_ns``, ``velocity``).
@@ -578,13 +623,26 @@ class Simulator:
         return min(heights[:5]), min(heights[5:])
 
     def _thrust_terms(
-        self, low: tuple[float, float]
+        self, low: tuple[float, float], s: list[float]
     ) -> tuple[tuple[int, float, float, float], ...]:
+        """The jump thrust on each pushing hemi body (world [N]).
+
+        A hemi pushes while its lowest mass is within the stroke of the ground and its
+        legs face the ground (their workspace cone, :mod:`.legs`).
+        """
         fx, fy, fz = self._jump_force
-        if fx == 0.0 and fy == 0.0 and fz == 0.0:
+        per_hemi = self._jump_per_hemi
+        if per_hemi is None and fx == 0.0 and fy == 0.0 and fz == 0.0:
             return ()
         stroke = self.config.thrust_stroke_m
-        reach = [low[h] <= stroke for h in range(2)]
+        facing = legs_face_ground(_belly_up_z(s), self._legs)
+        reach = [facing and low[h] <= stroke for h in range(2)]
+        if per_hemi is not None:
+            return tuple(
+                (HEMI_BODY_INDEX[h], *per_hemi[h])
+                for h in range(2)
+                if reach[h] and any(per_hemi[h])
+            )
         if self._jump_hemi != "auto":
             hemi = HEMI_LABELS.index(self._jump_hemi)
             pushing = [hemi] if reach[hemi] else []
@@ -604,18 +662,22 @@ class Simulator:
     ) -> tuple[tuple[int, float, float, float], ...]:
         """Stance forces of the compliant legs (world, on each hemi body) for this step.
 
-        A hemi's legs act while its lowest mass is within the stroke of the ground and
-        it is not pushing a jump (the thrust is then the legs' force).
+        A hemi's legs act while its feet, a stroke along the leg axis from its lowest
+        mass, reach the ground, its belly faces the ground (:func:`.legs.legs_face_ground`)
+        and it is not pushing a jump (the thrust is then the legs' force).
         """
         if not self.config.compliant_legs:
             return ()
         stroke = self.config.thrust_stroke_m
         pushing = {index for index, *_ in thrust}
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
+        if not legs_face_ground(r22, self._legs):
+            return ()
         terms = []
         for h, body in enumerate(HEMI_BODY_INDEX):
-            if low[h] >= stroke or body in pushing:
+            compression = leg_compression_m(stroke, low[h], r22)
+            if compression <= 0.0 or body in pushing:
                 continue
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
             wx, wy, wz = angular_velocity(shape, s[10], s[11], s[12])
             shape.relative()
             x, y, z = shape.rx[body], shape.ry[body], shape.rz[body]
@@ -627,7 +689,7 @@ class Simulator:
                 s[4] + r10 * ux + r11 * uy + r12 * uz,
                 s[5] + r20 * ux + r21 * uy + r22 * uz,
             )
-            fx, fy, fz = leg_stance_force(stroke - low[h], velocity, self._legs)
+            fx, fy, fz = leg_stance_force(compression, velocity, self._legs, (r02, r12, r22))
             if fz > 0.0:
                 terms.append((body, fx, fy, fz))
         return tuple(terms)
@@ -675,7 +737,7 @@ class Simulator:
         heights = self._mass_heights(s, shape0)
         prm = self._prm
         low = self._lowest_per_hemi(heights)
-        thrust = self._thrust_terms(low)
+        thrust = self._thrust_terms(low, s)
         prm.thrust = thrust + self._leg_terms(low, thrust, s, shape0)
         prm.contact = self._contact_candidates(heights, s, shape0)
         n = self.config.contact_substeps if prm.contact else 1
@@ -748,7 +810,7 @@ class Simulator:
             if not moving:
                 kern.ground()
             low = (float(ground[kernels.GR_LOW_A]), float(ground[kernels.GR_LOW_B]))
-            thrust = self._thrust_terms(low)
+            thrust = self._thrust_terms(low, s)
             if self.config.compliant_legs:
                 if shape0 is None:
                     shape0 = kernels.shape_from_block(begin[kernels.BEGIN_SHAPE :].tolist())
@@ -796,7 +858,7 @@ class Simulator:
         shape = self._current_shape().relative()
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
-        thrust = self._thrust_terms(low)
+        thrust = self._thrust_terms(low, s)
         legs = self._leg_terms(low, thrust, s, shape)
         saved = prm.contact, prm.thrust
         prm.contact = ALL_MASSES if self.config.ground_contact else ()
