@@ -205,6 +205,30 @@ def test_auto_jump_is_shared_by_the_hemis_in_stance() -> None:
         assert np.linalg.norm(out.jump_torque_nm) > 100.0  # [Nm] 2.8 m x 40 N at least
 
 
+def test_both_hemis_push_their_own_forces_once_both_are_in_stance() -> None:
+    q = axis_angle((0.3, -0.5, 0.8), 0.4)
+    force_a, force_b = np.array([10.0, 0.0, 200.0]), np.array([-10.0, 5.0, 120.0])  # [N]
+    both = PlannedJump(0, tuple(force_a), 300 * MS, "both", tuple(force_b))
+    machine = GaitPhaseMachine(GaitConfig(jumps=(both,)))
+    # One hemi in stance: the launch waits for the other.
+    out = tick(machine, 0, normal=(STANCE_N, 0.0), orientation=q)
+    assert out.jump_waiting and not out.thrusting
+    out = tick(machine, TICK_NS, normal=(STANCE_N, STANCE_N), orientation=q)
+    assert out.pushing_hemi == "both" and out.thrusting
+    lever_a = rotate(q, [RADIUS_X_M, 0.0, 0.0])  # p_a - p_com = -(p_b - p_com), world
+    np.testing.assert_allclose(out.jump_force_n, force_a + force_b)
+    np.testing.assert_allclose(
+        out.jump_torque_nm, np.cross(lever_a, force_a) - np.cross(lever_a, force_b), atol=1e-12
+    )
+
+
+def test_a_force_for_hemi_b_is_for_a_push_by_both_only() -> None:
+    with pytest.raises(ValueError, match="force_b_n"):
+        GaitConfig(jumps=(PlannedJump(0, (0.0, 0.0, 1.0), MS, "a", (0.0, 0.0, 1.0)),))
+    with pytest.raises(ValueError, match="jump_forces_b_n"):
+        jump_plan_from_arrays([0.0], [0.0, 0.0, 1.0], [0.1], ["both"], [0.0, 1.0])
+
+
 @pytest.mark.parametrize("hemi", ["a", "b"])
 def test_jump_torque_is_lever_cross_force_for_a_rotated_body(hemi: str) -> None:
     q = axis_angle((0.3, -0.5, 0.8), 1.1)

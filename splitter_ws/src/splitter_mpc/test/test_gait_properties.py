@@ -94,7 +94,9 @@ def jump_plans(draw: st.DrawFn) -> tuple[PlannedJump, ...]:
     for _ in range(draw(st.integers(0, 3))):
         duration_ns = draw(st.integers(1, 400)) * MS
         force = draw(st.tuples(*[st.floats(-400.0, 400.0)] * 3))
-        jumps.append(PlannedJump(t_ns, force, duration_ns, draw(st.sampled_from(JUMP_HEMIS))))
+        hemi = draw(st.sampled_from(JUMP_HEMIS))
+        force_b = draw(st.tuples(*[st.floats(-400.0, 400.0)] * 3)) if hemi == "both" else (0.0,) * 3
+        jumps.append(PlannedJump(t_ns, force, duration_ns, hemi, force_b))
         t_ns += duration_ns + draw(st.integers(0, 800)) * MS
     return tuple(jumps)
 
@@ -187,8 +189,13 @@ def run(config: GaitConfig, ticks: list[Tick]) -> list[GaitOutput]:
 
 
 def expected_wrench(jump: PlannedJump, hemi: str, tick: Tick) -> tuple[np.ndarray, np.ndarray]:
-    """The planned force through ``hemi``; ``auto``: half through each hemi."""
+    """The planned force through ``hemi``; ``auto``: half through each hemi; ``both``: each
+    hemi its own force."""
     q = np.asarray(tick.orientation_wxyz) / np.linalg.norm(tick.orientation_wxyz)
+    if hemi == "both":
+        fa, ta = jump_wrench(jump.force_n, q, tick.radius_x_m, "a")
+        fb, tb = jump_wrench(jump.force_b_n, q, tick.radius_x_m, "b")
+        return fa + fb, ta + tb
     if hemi != "auto":
         return jump_wrench(jump.force_n, q, tick.radius_x_m, hemi)
     half = np.asarray(jump.force_n) / 2.0
@@ -311,6 +318,9 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
             assert t >= jump.time_ns and out.phase in GROUND_PHASES
             if jump.hemi == "auto":
                 expected_hemi = {(1, 0): "a", (0, 1): "b", (1, 1): "auto"}[stance]
+            elif jump.hemi == "both":
+                expected_hemi = "both"
+                assert all(stance)
             else:
                 expected_hemi = jump.hemi
                 assert stance[names.HEMIS.index(jump.hemi)]
@@ -325,7 +335,10 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
             and t >= plan[len(thrusts)].time_ns
         ):  # a due jump not started: its hemi is not in stance, and it says it waits
             hemi = plan[len(thrusts)].hemi
-            assert not (any(stance) if hemi == "auto" else stance[names.HEMIS.index(hemi)])
+            if hemi == "both":
+                assert not all(stance)
+            else:
+                assert not (any(stance) if hemi == "auto" else stance[names.HEMIS.index(hemi)])
             assert out.jump_waiting
         if out.jump_waiting:  # a due jump
             assert not out.thrusting and len(thrusts) < len(plan)

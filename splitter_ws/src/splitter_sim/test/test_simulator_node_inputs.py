@@ -188,7 +188,9 @@ def test_command_callbacks_survive_any_message(make_node, steps) -> None:
                 assert frame == names.WORLD_FRAME
                 assert np.linalg.norm(force) <= MAX_JUMP_FORCE_N
                 assert np.linalg.norm(torque) <= MAX_JUMP_TORQUE_NM
-                assert sim._jump_force == tuple(float(f) for f in force)
+                # (both hemis' pushes: their sum, to the rounding of the torque's part)
+                scale = np.linalg.norm(force) + np.linalg.norm(torque)
+                np.testing.assert_allclose(sim._jump_force, force, rtol=0.0, atol=1e-12 * scale)
         _step(node, 2)
         assert sim.state().is_finite()
         assert published[names.JOINT_STATES], "the state was published"

@@ -10,9 +10,11 @@ from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 from splitter_sim.core.stepping import (
     MAX_JUMP_FORCE_N,
     REAL_TIME_MAX_CATCH_UP,
+    JumpThrust,
     LockstepWait,
     RealTimePacer,
     check_jump_wrench,
+    jump_thrust,
     pushing_hemi,
 )
 
@@ -36,6 +38,61 @@ def test_the_torque_about_the_com_names_the_pushing_hemi() -> None:
         assert pushing_hemi(state, force, np.cross(lever, force)) == hemi
     assert pushing_hemi(state, force, np.zeros(3)) == "auto"
     assert pushing_hemi(None, force, np.ones(3)) == "auto"
+
+
+def test_a_wrench_of_two_pushes_is_split_back_into_them() -> None:
+    """The gait encodes F_a at hemi a and F_b at hemi b with levers +-d/2; the split gives
+    back their parts across the tether and shares the part along it."""
+    sim = Simulator(RobotModel(), SimConfig(), InitialState(radii_m=(2.5, 0.3, 0.15)))
+    state = sim.state()
+    body_a, body_b = state.mass_positions_world_m[[0, 5]]
+    half = 0.5 * (body_a - body_b)
+    axis = half / np.linalg.norm(half)
+    force_a, force_b = np.array([20.0, 5.0, 200.0]), np.array([-20.0, 30.0, 120.0])
+    force = force_a + force_b
+    torque = np.cross(half, force_a) - np.cross(half, force_b)
+    thrust = jump_thrust(state, force, torque)
+    assert thrust.hemi == "auto" and thrust.per_hemi is not None
+    got_a, got_b = thrust.per_hemi
+    np.testing.assert_allclose(got_a + got_b, force, atol=1e-12)
+    np.testing.assert_allclose(np.cross(half, got_a) - np.cross(half, got_b), torque, atol=1e-9)
+    across = np.eye(3) - np.outer(axis, axis)
+    np.testing.assert_allclose(across @ got_a, across @ force_a, atol=1e-9)
+    np.testing.assert_allclose(got_a @ axis, 0.5 * force @ axis, atol=1e-9)
+    # One hemi's push stays that hemi's; no torque is "auto".
+    assert jump_thrust(state, force, np.cross(half, force)) == JumpThrust("a")
+    assert jump_thrust(state, force, np.cross(-half, force)) == JumpThrust("b")
+    assert jump_thrust(state, force, np.zeros(3)) == JumpThrust("auto")
+    assert jump_thrust(None, force, torque) == JumpThrust("auto")
+
+
+def test_unequal_pushes_launch_a_spin_with_the_angular_impulse_of_the_wrench() -> None:
+    """Hemi a pushes 200 N up, hemi b 120 N, under lunar gravity until each leaves its
+    stroke: the robot leaves with the angular impulse of the pushes (rectangle rule)
+    and spins about the horizontal axis across the tether, hemi a rising."""
+    from splitter_sim.core.tick import SimulatorTick
+
+    model = RobotModel()
+    config = SimConfig(gravity_m_s2=1.62, compliant_legs=True)
+    tick = SimulatorTick(Simulator(model, config, InitialState(position_m=(0.0, 0.0, 0.25))))
+    force_a, force_b = np.array([0.0, 0.0, 200.0]), np.array([0.0, 0.0, 120.0])
+    angular_impulse = np.zeros(3)
+    pushed = np.stack([force_a, force_b])  # [N] the first step's thrust: both in stance
+    for _ in range(int(0.3 / 0.005)):
+        state = tick.state()
+        body_a, body_b = state.mass_positions_world_m[[0, 5]]
+        half = 0.5 * (body_a - body_b)
+        tick.command_jump(state.t_ns, force_a + force_b, np.cross(half, force_a - force_b))
+        levers = state.mass_positions_world_m[[0, 5]] - state.position_m
+        angular_impulse += 0.005 * (np.cross(levers[0], pushed[0]) + np.cross(levers[1], pushed[1]))
+        tick.step()
+        # The thrust of the next step (the command in force), until a hemi leaves its stroke.
+        pushed = tick.state().leg_force_n
+    end = tick.state()
+    np.testing.assert_allclose(end.angular_momentum_world, angular_impulse, rtol=0.03)
+    w = end.angular_velocity_rad_s
+    assert w[1] < -0.1 and abs(w[0]) < 1e-6 and abs(w[2]) < 1e-6  # hemi a (+x) rises: -y
+    assert np.linalg.norm(angular_impulse) > 10.0  # [N m s] both pushed a while
 
 
 def test_lockstep_steps_when_every_topic_answered_or_after_the_timeout() -> None:

@@ -47,14 +47,18 @@ class JumpSpec:
     ``hemi`` names the Hemi-SPLITTER whose legs push ("a", "b"), or "auto" for
     the one touching the ground (the lower one). The thrust acts through that
     hemi's body, so it also exerts a moment about the centre of mass.
+    ``hemi: both`` pushes with both at once, each its own force: in YAML
+    ``force_a_n`` and ``force_b_n`` (kept as ``force_n`` and ``force_b_n``); unequal
+    forces make a launch that adds rotation (paper III.A).
     The jump starts at the first control tick at or after ``time_s`` when the
-    pushing hemi is in stance.
+    pushing hemi (both, for "both") is in stance.
     """
 
     time_s: float  # [s]
-    force_n: tuple[float, float, float]  # [N] world frame
+    force_n: tuple[float, float, float]  # [N] world frame (hemi a's for "both")
     duration_s: float  # [s]
     hemi: str = "auto"
+    force_b_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N] world, hemi b's ("both")
 
 
 @dataclass(frozen=True)
@@ -261,6 +265,72 @@ def _findings(data: Any, variants: tuple[str, ...]) -> tuple[PaperFinding, ...]:
     return tuple(out)
 
 
+JUMP_FIELDS = ("time_s", "force_n", "duration_s", "hemi")
+BOTH_JUMP_FIELDS = ("time_s", "force_a_n", "force_b_n", "duration_s", "hemi")
+
+
+def _jumps(data: Any) -> tuple[JumpSpec, ...]:
+    """The ``jumps`` list, each entry checked; errors name ``jumps[i].field``."""
+    if data is None:
+        return ()
+    if not isinstance(data, list):
+        raise ScenarioError("jumps: expected a list of pushes")
+    out: list[JumpSpec] = []
+    for i, j in enumerate(data):
+        where = f"jumps[{i}]"
+        if not isinstance(j, Mapping):
+            raise ScenarioError(f"{where}: expected a mapping of {JUMP_FIELDS}")
+        hemi = str(j.get("hemi", "auto"))
+        if hemi not in ("a", "b", "auto", "both"):
+            raise ScenarioError(f"{where}.hemi: must be 'a', 'b', 'auto' or 'both', got {hemi!r}")
+        known = BOTH_JUMP_FIELDS if hemi == "both" else JUMP_FIELDS
+        unknown = sorted(set(j) - set(known))
+        if unknown:
+            raise ScenarioError(
+                f"{where}.{unknown[0]}: unknown field for hemi {hemi!r}; use {list(known)}"
+            )
+        try:
+            if hemi == "both":
+                force = _vector(j, "force_a_n")
+                force_b = _vector(j, "force_b_n")
+            else:
+                force = _vector(j, "force_n")
+                force_b = np.zeros(3)
+            duration = _positive(j, "duration_s")
+            time_s = _finite(j, "time_s", 0.0)
+        except ScenarioError as exc:
+            raise ScenarioError(f"{where}.{exc}") from exc
+        if time_s < 0.0:
+            raise ScenarioError(f"{where}.time_s: must be >= 0, got {time_s}")
+        if out and time_s < out[-1].time_s + out[-1].duration_s:
+            raise ScenarioError(
+                f"{where}.time_s: {time_s} s is before the end of jumps[{i - 1}] "
+                f"({out[-1].time_s + out[-1].duration_s} s); two hemis pushing at once are "
+                "one jump with hemi: both"
+            )
+        out.append(
+            JumpSpec(
+                time_s=time_s,
+                force_n=(float(force[0]), float(force[1]), float(force[2])),
+                duration_s=duration,
+                hemi=hemi,
+                force_b_n=(float(force_b[0]), float(force_b[1]), float(force_b[2])),
+            )
+        )
+    return tuple(out)
+
+
+def _finite(data: Mapping[str, Any], key: str, default: float) -> float:
+    value = data.get(key, default)
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{key}: expected a number, got {value!r}") from exc
+    if not math.isfinite(number):
+        raise ScenarioError(f"{key}: expected a finite number, got {value!r}")
+    return number
+
+
 def load_scenario(name_or_path: str | Path, variant: str | None = None) -> Scenario:
     """Load a shipped scenario by name, or a YAML file by path, with one variant applied."""
     path = Path(name_or_path)
@@ -320,21 +390,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         raise ScenarioError(f"controller.integrator: use one of {INTEGRATORS}")
     if controller.attitude_reference not in ATTITUDE_REFERENCE_MODES:
         raise ScenarioError(f"controller.attitude_reference: use one of {ATTITUDE_REFERENCE_MODES}")
-    jumps = []
-    for i, j in enumerate(d.get("jumps", []) or []):
-        force = _vector(j, "force_n")
-        jumps.append(
-            JumpSpec(
-                time_s=float(j.get("time_s", 0.0)),
-                force_n=(float(force[0]), float(force[1]), float(force[2])),
-                duration_s=_positive(j, "duration_s"),
-                hemi=str(j.get("hemi", "auto")),
-            )
-        )
-        if jumps[-1].hemi not in ("a", "b", "auto"):
-            raise ScenarioError(f"jumps[{i}].hemi must be 'a', 'b' or 'auto'")
-        if jumps[-1].time_s < 0.0:
-            raise ScenarioError(f"jumps[{i}].time_s must be >= 0")
+    jumps = _jumps(d.get("jumps"))
     return Scenario(
         name=str(d.get("name", stem)),
         description=str(d.get("description", "")),

@@ -15,6 +15,7 @@ from typing import Any
 from splitter_bag.core.node_parameters import parameter_file_text
 from splitter_bringup.scenario.definition import Scenario
 from splitter_mpc.core.estimator import EstimatorConfig
+from splitter_mpc.core.gait import jump_plan_parameters
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
 from splitter_msgs_py import names
 from splitter_msgs_py.core.parameter_fields import parameter_fields
@@ -181,10 +182,7 @@ def gait_parameters(scenario: Scenario) -> dict:
         "w_ref_rad_s": _floats(c.w_ref_rad_s),
         "attitude_reference": c.attitude_reference,
         "gravity_m_s2": float(scenario.gravity_m_s2),  # the planet the robot is on
-        "jump_times_s": [float(j.time_s) for j in scenario.jumps],
-        "jump_forces_n": [float(f) for j in scenario.jumps for f in j.force_n],
-        "jump_durations_s": [float(j.duration_s) for j in scenario.jumps],
-        "jump_hemis": [j.hemi for j in scenario.jumps],
+        **jump_plan_parameters(scenario.jumps),
     }
 
 

@@ -80,7 +80,7 @@ _LOG = logging.getLogger(__name__)
 
 NS_PER_S = 1_000_000_000  # [ns/s]
 HEMI_INDEX: dict[str, int] = {hemi: i for i, hemi in enumerate(names.HEMIS)}
-JUMP_HEMIS = ("a", "b", "auto")
+JUMP_HEMIS = ("a", "b", "auto", "both")
 ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref", "momentum_aligned")
 AXIS_EPS_RAD_S = 1e-9  # [rad/s] a w_ref shorter than this has no axis (as in the MPC's OCP)
 MOMENTUM_EPS_KG_M2_S = 1e-9  # [kg m^2/s] an angular momentum shorter than this has no direction
@@ -290,27 +290,42 @@ class JumpLike(Protocol):
     force_n: Sequence[float]
     duration_s: float
     hemi: str
+    force_b_n: Sequence[float]
 
 
 @dataclass(frozen=True)
 class PlannedJump:
-    """One planned jump on the integer-nanosecond clock."""
+    """One planned jump on the integer-nanosecond clock.
+
+    ``hemi`` "both": the two hemis push at once, hemi a ``force_n`` and hemi b
+    ``force_b_n`` (a launch that adds rotation); otherwise ``force_n`` is the whole
+    thrust and ``force_b_n`` is zero.
+    """
 
     time_ns: int  # [ns] earliest start
-    force_n: tuple[float, float, float]  # [N] world frame
+    force_n: tuple[float, float, float]  # [N] world frame (hemi a's when "both")
     duration_ns: int  # [ns]
-    hemi: str  # "a", "b" or "auto"
+    hemi: str  # "a", "b", "auto" or "both"
+    force_b_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N] world, hemi b's ("both")
 
     @classmethod
     def from_spec(cls, spec: JumpLike) -> PlannedJump:
         """From a scenario ``JumpSpec`` (or anything with the same fields)."""
         force = tuple(float(f) for f in spec.force_n)
+        force_b = tuple(float(f) for f in getattr(spec, "force_b_n", (0.0, 0.0, 0.0)))
         return cls(
             time_ns=seconds_to_ns(float(spec.time_s)),
             force_n=(force[0], force[1], force[2]),
             duration_ns=seconds_to_ns(float(spec.duration_s)),
             hemi=str(spec.hemi),
+            force_b_n=(force_b[0], force_b[1], force_b[2]),
         )
+
+    @property
+    def total_force_n(self) -> tuple[float, float, float]:
+        """The whole thrust [N] (both hemis' when "both")."""
+        a, b = self.force_n, self.force_b_n
+        return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
 def validate_jump_plan(jumps: Sequence[PlannedJump]) -> tuple[PlannedJump, ...]:
@@ -327,6 +342,10 @@ def validate_jump_plan(jumps: Sequence[PlannedJump]) -> tuple[PlannedJump, ...]:
             raise ValueError(f"{where}: duration_s must be > 0, got {jump.duration_ns / NS_PER_S}")
         if len(jump.force_n) != 3 or not all(math.isfinite(f) for f in jump.force_n):
             raise ValueError(f"{where}: force_n must be 3 finite numbers, got {jump.force_n}")
+        if len(jump.force_b_n) != 3 or not all(math.isfinite(f) for f in jump.force_b_n):
+            raise ValueError(f"{where}: force_b_n must be 3 finite numbers, got {jump.force_b_n}")
+        if jump.hemi != "both" and any(jump.force_b_n):
+            raise ValueError(f"{where}: force_b_n is for hemi 'both' only, got hemi {jump.hemi!r}")
         if jump.hemi not in JUMP_HEMIS:
             raise ValueError(f"{where}: hemi must be one of {JUMP_HEMIS}, got {jump.hemi!r}")
         if i > 0:
@@ -344,12 +363,21 @@ def jump_plan_from_arrays(
     forces_n: Sequence[float],
     durations_s: Sequence[float],
     hemis: Sequence[str],
+    forces_b_n: Sequence[float] = (),
 ) -> tuple[PlannedJump, ...]:
     """The plan from flat parameter arrays (3 force components per jump), validated.
 
-    ``ValueError`` names the parameter (``jump_forces_n``, ...) that does not fit.
+    ``forces_b_n``: hemi b's force of each jump (3 per jump; for hemi "both"), or
+    empty (none). ``ValueError`` names the parameter (``jump_forces_n``, ...) that
+    does not fit.
     """
     n = len(times_s)
+    if len(forces_b_n) == 0:
+        forces_b_n = [0.0] * (3 * n)
+    if len(forces_b_n) != 3 * n:
+        raise ValueError(
+            f"jump_forces_b_n: expected 3 values per jump ({3 * n}) or none, got {len(forces_b_n)}"
+        )
     if len(forces_n) != 3 * n:
         raise ValueError(
             f"jump_forces_n: expected 3 values per jump ({3 * n}), got {len(forces_n)}"
@@ -363,6 +391,7 @@ def jump_plan_from_arrays(
     for name, values in (
         ("jump_times_s", times_s),
         ("jump_forces_n", forces_n),
+        ("jump_forces_b_n", forces_b_n),
         ("jump_durations_s", durations_s),
     ):
         if not all(math.isfinite(float(v)) for v in values):
@@ -385,6 +414,11 @@ def jump_plan_from_arrays(
             ),
             duration_ns=seconds_to_ns(float(durations_s[i])),
             hemi=str(hemis[i]),
+            force_b_n=(
+                float(forces_b_n[3 * i]),
+                float(forces_b_n[3 * i + 1]),
+                float(forces_b_n[3 * i + 2]),
+            ),
         )
         for i in range(n)
     ]
@@ -402,6 +436,9 @@ def jump_plan_parameters(jumps: Iterable[JumpLike]) -> dict[str, list[float] | l
         "jump_forces_n": [float(f) for j in jumps for f in j.force_n],
         "jump_durations_s": [float(j.duration_s) for j in jumps],
         "jump_hemis": [str(j.hemi) for j in jumps],
+        "jump_forces_b_n": [
+            float(f) for j in jumps for f in getattr(j, "force_b_n", (0.0, 0.0, 0.0))
+        ],
     }
 
 
@@ -507,6 +544,7 @@ def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
         list(params.get("jump_forces_n") or []),
         list(params.get("jump_durations_s") or []),
         [str(h) for h in params.get("jump_hemis") or []],
+        list(params.get("jump_forces_b_n") or []),
     )
     values: dict[str, Any] = {}
     for name, default, _info in parameter_fields(GaitConfig):
@@ -700,7 +738,7 @@ class GaitPhaseMachine:
 
         if self._thrust is not None:
             jump = cfg.jumps[self._thrust.index]
-            force, torque = _split_jump_wrench(jump.force_n, q, radius_x, self._thrust.hemi)
+            force, torque = _split_jump_wrench(jump, q, radius_x, self._thrust.hemi)
             pushing: str | None = self._thrust.hemi
         else:
             force, torque, pushing = np.zeros(3), np.zeros(3), None
@@ -851,7 +889,10 @@ ALLOWED_TRANSITIONS: frozenset[tuple[GaitPhase, GaitPhase]] = frozenset(
 
 
 def _pushing_hemi(planned: str, stance: tuple[bool, bool]) -> str | None:
-    """The hemi that pushes now ("a", "b", or "auto": all in stance), or None if none may."""
+    """The hemi that pushes now ("a", "b", or "auto": all in stance; "both": each its own
+    force, both in stance), or None if none may."""
+    if planned == "both":
+        return "both" if all(stance) else None
     if planned != "auto":
         return planned if stance[HEMI_INDEX[planned]] else None
     in_stance = [hemi for hemi, s in zip(names.HEMIS, stance, strict=True) if s]
@@ -861,15 +902,20 @@ def _pushing_hemi(planned: str, stance: tuple[bool, bool]) -> str | None:
 
 
 def _split_jump_wrench(
-    force_n: ArrayLike, orientation_wxyz: ArrayLike, radius_x_m: float, hemi: str
+    jump: PlannedJump, orientation_wxyz: ArrayLike, radius_x_m: float, hemi: str
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Force [N] and torque about the COM [Nm] of a thrust through one hemi or shared by both.
+    """Force [N] and torque about the COM [Nm] of a thrust through one hemi, shared by
+    both ("auto") or pushed by both at once, each its own force ("both").
 
     ``"auto"`` shares the force equally between the two hemis (both in stance).
     """
+    if hemi == "both":
+        force_a, torque_a = jump_wrench(jump.force_n, orientation_wxyz, radius_x_m, "a")
+        force_b, torque_b = jump_wrench(jump.force_b_n, orientation_wxyz, radius_x_m, "b")
+        return force_a + force_b, torque_a + torque_b
     if hemi != "auto":
-        return jump_wrench(force_n, orientation_wxyz, radius_x_m, hemi)
-    half = np.asarray(force_n, dtype=float) / 2.0
+        return jump_wrench(jump.force_n, orientation_wxyz, radius_x_m, hemi)
+    half = np.asarray(jump.force_n, dtype=float) / 2.0
     force = np.zeros(3)
     torque = np.zeros(3)
     for side in names.HEMIS:

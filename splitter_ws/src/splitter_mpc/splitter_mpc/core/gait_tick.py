@@ -82,7 +82,12 @@ class GaitNodeSettings:
         (), "planned thrust durations, one per jump [s]"
     )
     jump_hemis: tuple[str, ...] = parameter_field(
-        (), "pushing hemi per planned jump: 'a', 'b' or 'auto'", item_type=str
+        (), "pushing hemi per planned jump: 'a', 'b', 'auto' or 'both'", item_type=str
+    )
+    jump_forces_b_n: tuple[float, ...] = parameter_field(
+        (),
+        "hemi b's thrust per planned jump, world frame, 3 values per jump, for hemi 'both' "
+        "(jump_forces_n is then hemi a's); empty: none [N]",
     )
     control_period_s: float = parameter_field(
         0.01, "control tick period: ticks answered are the multiples of it [s]", bounds=(0.001, 1.0)

@@ -2,9 +2,10 @@
 
 ROS-free; the ``simulator`` node calls these and does the messaging.
 
-* :func:`check_jump_wrench` bounds a commanded jump wrench; :func:`pushing_hemi`
-  finds the hemi whose body the commanded torque about the centre of mass places
-  the thrust at.
+* :func:`check_jump_wrench` bounds a commanded jump wrench; :func:`jump_thrust`
+  splits it over the hemis: through the hemi whose body the commanded torque about
+  the centre of mass places the thrust at (:func:`pushing_hemi`), or by both at
+  once.
 * :class:`LockstepWait`: on a control tick the simulator steps once every
   lockstep command topic that has a publisher delivered a message stamped with
   the tick, or once it has waited ``timeout_s`` (wall) for them.
@@ -42,6 +43,10 @@ def check_jump_wrench(force_n: ArrayLike, torque_nm: ArrayLike) -> None:
             )
 
 
+# Relative torque residual [-] within which a wrench is the thrust of a single hemi.
+SINGLE_HEMI_TOLERANCE = 0.02
+
+
 def pushing_hemi(state: SimState | None, force_n: ArrayLike, torque_nm: ArrayLike) -> str:
     """The hemi ("a", "b") whose body the commanded torque about the COM places the thrust at.
 
@@ -57,6 +62,51 @@ def pushing_hemi(state: SimState | None, force_n: ArrayLike, torque_nm: ArrayLik
     levers = state.mass_positions_world_m[list(HEMI_BODY_INDEX)] - state.position_m
     errors = [float(np.linalg.norm(torque - np.cross(lever, force))) for lever in levers]
     return "a" if errors[0] <= errors[1] else "b"
+
+
+@dataclass(frozen=True)
+class JumpThrust:
+    """How a commanded jump wrench is pushed: through one hemi, or by both at once.
+
+    ``hemi`` is "a", "b" or "auto" (:meth:`Simulator.command_jump_force`) when
+    ``per_hemi`` is None; otherwise both hemis push their own forces (world [N]).
+    """
+
+    hemi: str
+    per_hemi: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def jump_thrust(state: SimState | None, force_n: ArrayLike, torque_nm: ArrayLike) -> JumpThrust:
+    """Split a jump wrench (world force, torque about the COM) over the hemis' legs.
+
+    The gait phase manager encodes a push with the levers ``+-d/2`` of the hemi
+    bodies from their midpoint (``d`` from hemi b's body to hemi a's, the tether):
+    ``tau = d/2 x F_a - d/2 x F_b``. The same levers decode it. A wrench that one
+    hemi's thrust makes (``tau = +-d/2 x F`` within :data:`SINGLE_HEMI_TOLERANCE` of
+    ``|tau|``), or no torque, goes through that hemi (:func:`pushing_hemi`). Any
+    other wrench is pushed by both hemis at once: ``F_a = F/2 + (tau x d) / |d|^2``,
+    ``F_b = F - F_a``. Across the tether these are the forces the gait encoded
+    (``(tau x d) / |d|^2`` is half their difference); along it, which makes no
+    torque, the force is shared equally. A torque about the tether axis, which no
+    force at the two bodies makes, is left out.
+    """
+    force = np.asarray(force_n, dtype=float)
+    torque = np.asarray(torque_nm, dtype=float)
+    if state is None:
+        return JumpThrust("auto")
+    scale = float(np.linalg.norm(force))
+    size = float(np.linalg.norm(torque))
+    if scale == 0.0 or size <= 1e-9 * (1.0 + scale):
+        return JumpThrust("auto")
+    body_a, body_b = state.mass_positions_world_m[list(HEMI_BODY_INDEX)]
+    d = body_a - body_b
+    half = 0.5 * d
+    for hemi, lever in (("a", half), ("b", -half)):
+        if np.linalg.norm(torque - np.cross(lever, force)) <= SINGLE_HEMI_TOLERANCE * size:
+            return JumpThrust(hemi)
+    d2 = float(d @ d)
+    force_a = 0.5 * force + np.cross(torque, d) / d2
+    return JumpThrust("auto", (force_a, force - force_a))
 
 
 @dataclass

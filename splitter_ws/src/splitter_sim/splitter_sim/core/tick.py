@@ -58,7 +58,7 @@ from splitter_sim.core.stepping import (
     RealTimePacer,
     check_jump_wrench,
     check_trajectory_stamp,
-    pushing_hemi,
+    jump_thrust,
 )
 
 LOCKSTEP_TOPICS = (names.JOINT_COMMANDS, names.JUMP_COMMAND)
@@ -262,7 +262,7 @@ class SimulatorTick:
     ) -> None:
         """A jump wrench stamped ``stamp_ns`` (admitted; world frame, torque about the COM).
 
-        The torque names the pushing hemi (:func:`pushing_hemi`). ValueError when the
+        The torque names the pushing hemi, or both (:func:`jump_thrust`). ValueError when the
         wrench is refused (it still answers its tick).
         """
         try:
@@ -271,7 +271,11 @@ class SimulatorTick:
                     f"header.frame_id: expected '{names.WORLD_FRAME}', got {frame_id!r}"
                 )
             check_jump_wrench(force_n, torque_nm)
-            self.sim.command_jump_force(force_n, pushing_hemi(self.state(), force_n, torque_nm))
+            thrust = jump_thrust(self.state(), force_n, torque_nm)
+            if thrust.per_hemi is None:
+                self.sim.command_jump_force(force_n, thrust.hemi)
+            else:
+                self.sim.command_jump_forces(*thrust.per_hemi)
         finally:
             self.lockstep.arrived(names.JUMP_COMMAND, stamp_ns)
 

@@ -1,0 +1,63 @@
+"""The scenario language's pushes: one hemi, shared, or both at once (a launch that adds
+rotation), each field checked with an error naming it, nothing run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from splitter_bringup.scenario.definition import JumpSpec, ScenarioError, load_scenario
+from splitter_bringup.scenario.graph_config import gait_parameters
+from splitter_mpc.core.gait import PlannedJump, gait_config_from_parameters
+
+BOTH = "{time_s: 0.0, hemi: both, force_a_n: [0, 0, 200], force_b_n: [0, 0, 120], duration_s: 0.6}"
+
+
+def _scenario(tmp_path: Path, jumps: str) -> Path:
+    path = tmp_path / "pushes.yaml"
+    path.write_text(f"duration_s: 1.0\ngravity: moon\njumps:\n  - {jumps}\n")
+    return path
+
+
+def test_both_hemis_push_at_once_each_its_own_force(tmp_path: Path) -> None:
+    scenario = load_scenario(_scenario(tmp_path, BOTH))
+    assert scenario.jumps == (
+        JumpSpec(0.0, (0.0, 0.0, 200.0), 0.6, "both", force_b_n=(0.0, 0.0, 120.0)),
+    )
+    # Through the gait phase manager's parameters to its plan, unchanged.
+    config = gait_config_from_parameters(gait_parameters(scenario))
+    assert config.jumps == (
+        PlannedJump(0, (0.0, 0.0, 200.0), 600_000_000, "both", (0.0, 0.0, 120.0)),
+    )
+    assert config.jumps[0].total_force_n == (0.0, 0.0, 320.0)
+
+
+@pytest.mark.parametrize(
+    ("jump", "field"),
+    [
+        ("{time_s: 0, force_n: [0, 0, .nan], duration_s: 0.6}", r"jumps\[0\]\.force_n"),
+        ("{time_s: 0, force_n: [0, 0, .inf], duration_s: 0.6}", r"jumps\[0\]\.force_n"),
+        ("{time_s: 0, force_n: [0, 0], duration_s: 0.6}", r"jumps\[0\]\.force_n"),
+        ("{time_s: .nan, force_n: [0, 0, 1], duration_s: 0.6}", r"jumps\[0\]\.time_s"),
+        ("{time_s: -1, force_n: [0, 0, 1], duration_s: 0.6}", r"jumps\[0\]\.time_s"),
+        ("{time_s: 0, force_n: [0, 0, 1], duration_s: 0}", r"jumps\[0\]\.duration_s"),
+        ("{time_s: 0, force_n: [0, 0, 1], duration_s: 0.6, hemi: c}", r"jumps\[0\]\.hemi"),
+        ("{time_s: 0, force_n: [0, 0, 1], duration_s: 0.6, torque: 1}", r"jumps\[0\]\.torque"),
+        (BOTH.replace("force_b_n", "force_n"), r"jumps\[0\]\.force_n: unknown"),
+        (BOTH.replace("120]", ".nan]"), r"jumps\[0\]\.force_b_n"),
+        ("{time_s: 0, force_a_n: [0, 0, 1], duration_s: 0.6}", r"jumps\[0\]\.force_a_n"),
+    ],
+)
+def test_a_bad_push_names_its_field(tmp_path: Path, jump: str, field: str) -> None:
+    with pytest.raises(ScenarioError, match=field):
+        load_scenario(_scenario(tmp_path, jump))
+
+
+def test_pushes_that_overlap_are_refused_and_told_how_to_push_both(tmp_path: Path) -> None:
+    two = (
+        "{time_s: 0, force_n: [0, 0, 60], duration_s: 0.1, hemi: a}\n"
+        "  - {time_s: 0, force_n: [0, 0, 60], duration_s: 0.1, hemi: b}"
+    )
+    with pytest.raises(ScenarioError, match=r"jumps\[1\]\.time_s.*hemi: both"):
+        load_scenario(_scenario(tmp_path, two))
