@@ -49,7 +49,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState, Range
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from splitter_model.actuators import TETHER_INDEX
 from splitter_mpc.core.gait import GaitConfig, GaitOutput
@@ -160,6 +160,7 @@ class GaitPhaseManagerNode(Node):
             WrenchStamped, names.JUMP_COMMAND, qos_for(names.JUMP_COMMAND)
         )
         self._phase_pub = self.create_publisher(String, names.GAIT_PHASE, LATCHED_QOS)
+        self._stance_pub = self.create_publisher(Bool, names.STANCE_SHAPE, LATCHED_QOS)
         self._w_ref_pub = self.create_publisher(TwistStamped, names.ATTITUDE_REFERENCE, LATCHED_QOS)
         self._q_ref_pub = self.create_publisher(
             PoseStamped, names.ATTITUDE_REFERENCE_POSE, LATCHED_QOS
@@ -254,6 +255,8 @@ class GaitPhaseManagerNode(Node):
                     f"gait phase {output.phase.value} at t = {t_ns * 1e-9:.3f} s: {output.reason}"
                 )
                 self._phase_pub.publish(String(data=output.phase.value))
+            if answer.stance_shape_changed:
+                self._stance_pub.publish(Bool(data=output.stance_shape))
             if output.reference is not None:
                 self._publish_reference(output)
         self._jump_pub.publish(jump)

@@ -33,7 +33,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
@@ -114,6 +114,7 @@ INPUTS: dict[str, tuple[type, object, Callable[[object], object]]] = {
     names.ATTITUDE_REFERENCE: (TwistStamped, LATCHED_QOS, _read_w_ref),
     names.ATTITUDE_REFERENCE_POSE: (PoseStamped, LATCHED_QOS, _read_q_ref),
     names.GAIT_PHASE: (String, LATCHED_QOS, lambda msg: msg.data),  # no stamp
+    names.STANCE_SHAPE: (Bool, LATCHED_QOS, lambda msg: bool(msg.data)),  # no stamp
     names.JUMP_COMMAND: (WrenchStamped, qos_for(names.JUMP_COMMAND), lambda msg: None),
     names.ESTIMATE_MASSES: (
         Vector3Stamped,
@@ -204,7 +205,7 @@ class InertialMorphingMpcNode(Node):
             self._reject(topic, exc)
             return
         t_ns = None
-        if topic != names.GAIT_PHASE:
+        if topic not in (names.GAIT_PHASE, names.STANCE_SHAPE):
             t_ns = admitted_stamp(
                 self,
                 self.tick.stamps,

@@ -23,6 +23,7 @@ from splitter_mpc.core.gait import (
     jump_plan_from_arrays,
     jump_wrench,
     momentum_aligned_attitude,
+    predicted_touchdown_s,
     propagate_attitude,
     quaternion_multiply,
     smallest_rotation,
@@ -227,6 +228,35 @@ def test_a_force_for_hemi_b_is_for_a_push_by_both_only() -> None:
         GaitConfig(jumps=(PlannedJump(0, (0.0, 0.0, 1.0), MS, "a", (0.0, 0.0, 1.0)),))
     with pytest.raises(ValueError, match="jump_forces_b_n"):
         jump_plan_from_arrays([0.0], [0.0, 0.0, 1.0], [0.1], ["both"], [0.0, 1.0])
+
+
+def test_the_predicted_touchdown_is_the_ballistic_fall_to_the_legs_height() -> None:
+    # From 4.6 m up at rest on the Moon to 0.6 m: sqrt(2 x 4 / 1.62) = 2.222 s.
+    assert predicted_touchdown_s(4.6, 0.0, MOON_G, 0.6) == pytest.approx(math.sqrt(8.0 / MOON_G))
+    # Rising at 3.6 m/s from 0.6 m: back at 0.6 m after 2 v / g.
+    assert predicted_touchdown_s(0.6 + 1e-12, 3.6, MOON_G, 0.6) == pytest.approx(7.2 / MOON_G)
+    assert predicted_touchdown_s(0.5, -1.0, MOON_G, 0.6) == 0.0  # already there
+    assert predicted_touchdown_s(2.6, -2.0, 0.0, 0.6) == pytest.approx(1.0)  # no gravity
+    assert predicted_touchdown_s(2.6, 0.5, 0.0, 0.6) == math.inf
+
+
+def test_the_stance_shape_is_asked_for_within_the_lead_of_the_touchdown() -> None:
+    config = GaitConfig(jumps=(jump(0.0, "auto"), jump(5.0, "auto")), stance_lead_s=0.5)
+    machine = GaitPhaseMachine(config, gravity_m_s2=MOON_G)
+    out = tick(machine, 0, normal=(STANCE_N, STANCE_N))
+    assert out.stance_shape and out.touchdown_in_s == 0.0  # on the ground: legs
+    t = TICK_NS
+    for _ in range(40):  # lift-off
+        out = tick(machine, t, position=(0.0, 0.0, 2.0), velocity=(0.0, 0.0, 3.0))
+        t += TICK_NS
+    assert out.phase == GaitPhase.IN_FLIGHT and not out.stance_shape
+    # Falling at 1 m/s with the hemi bodies 1.0 m up: 0.4 m to go, 0.34 s: within the lead.
+    out = tick(machine, t, position=(0.0, 0.0, 1.0), velocity=(0.0, 0.0, -1.0))
+    assert out.touchdown_in_s == pytest.approx(predicted_touchdown_s(1.0, -1.0, MOON_G, 0.6))
+    assert out.touchdown_in_s < 0.5 and out.stance_shape
+    # Higher up (2 s to go): the limbs are the MPC's.
+    out = tick(machine, t + TICK_NS, position=(0.0, 0.0, 3.0), velocity=(0.0, 0.0, -1.0))
+    assert out.touchdown_in_s > 1.0 and not out.stance_shape
 
 
 @pytest.mark.parametrize("hemi", ["a", "b"])

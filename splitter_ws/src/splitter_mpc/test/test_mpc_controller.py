@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+from splitter_model.model import (
+    PAPER_INITIAL_RADII_M,
+    RobotModel,
+    principal_inertia,
+    radii_from_inertia,
+)
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
 from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings
 from splitter_mpc.core.solvers import SolverOptions
@@ -113,6 +118,28 @@ def test_inactive_when_disabled_landed_or_without_reference(mpc) -> None:
     fresh = MorphingController(MODEL, ControllerConfig(), mpc)
     np.testing.assert_allclose(fresh.on_state(0, W0, Q0, I0, None), I0)
     assert not fresh.status.active  # no attitude reference yet
+
+
+def test_the_limbs_go_back_to_the_legs_before_a_predicted_touchdown(mpc) -> None:
+    """In flight with the stance shape asked for (touchdown within the gait's lead), the
+    controller holds the nominal shape, as on the ground; after lift-off it morphs again."""
+    ctl = controller(mpc)
+    tick(ctl, 0, "IN_FLIGHT")
+    assert not np.allclose(tick(ctl, 10, "IN_FLIGHT"), I0)  # morphing in flight
+    for phase in ("IN_FLIGHT", "LANDING"):
+        handed_back = ctl.on_state(20 * MS, W0, Q0, I0, phase, stance_shape=True)
+        np.testing.assert_allclose(handed_back, I0)
+        assert not ctl.status.active and ctl.plan is None
+    # The limbs go back, the tether stays: from a morphed shape, the setpoint has the
+    # nominal limbs and the measured tether.
+    nominal = principal_inertia(MODEL, radii_from_inertia(MODEL, I0))
+    morphed_radii = radii_from_inertia(MODEL, I0) * np.array([1.05, 1.4, 0.7])
+    morphed = principal_inertia(MODEL, morphed_radii)
+    handed_back = ctl.on_state(25 * MS, W0, Q0, morphed, "IN_FLIGHT", stance_shape=True)
+    expected = principal_inertia(MODEL, [morphed_radii[0], *radii_from_inertia(MODEL, nominal)[1:]])
+    np.testing.assert_allclose(handed_back, expected, rtol=1e-12)
+    ctl.on_state(30 * MS, W0, Q0, I0, "IN_FLIGHT", stance_shape=False)
+    assert ctl.status.active and ctl.status.replanned
 
 
 def test_bad_input_is_rejected_and_leaves_the_state_unchanged(mpc) -> None:

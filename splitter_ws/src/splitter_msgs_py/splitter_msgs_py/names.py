@@ -19,6 +19,8 @@ JOINT_STATES: Final = "/splitter/joint_states"
 INERTIA_SETPOINT: Final = "/splitter/inertia_setpoint"
 JOINT_COMMANDS: Final = "/splitter/joint_commands"
 GAIT_PHASE: Final = "/splitter/gait_phase"
+# True while the limbs are legs: on the ground, or the predicted touchdown within the lead.
+STANCE_SHAPE: Final = "/splitter/gait/stance_shape"
 ATTITUDE_REFERENCE: Final = "/splitter/attitude_reference"
 JUMP_COMMAND: Final = "/splitter/jump_command"
 MARKERS: Final = "/splitter/markers"
@@ -79,6 +81,7 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     INERTIA_SETPOINT: "geometry_msgs/msg/Vector3Stamped",
     JOINT_COMMANDS: "sensor_msgs/msg/JointState",
     GAIT_PHASE: "std_msgs/msg/String",
+    STANCE_SHAPE: "std_msgs/msg/Bool",
     ATTITUDE_REFERENCE: "geometry_msgs/msg/TwistStamped",
     ATTITUDE_REFERENCE_POSE: "geometry_msgs/msg/PoseStamped",
     CONTACT_WRENCH_A: "geometry_msgs/msg/WrenchStamped",

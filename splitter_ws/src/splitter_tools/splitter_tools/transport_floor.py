@@ -60,6 +60,7 @@ SUBSCRIPTIONS: dict[str, tuple[str, ...]] = {
         names.ATTITUDE_REFERENCE,
         names.ATTITUDE_REFERENCE_POSE,
         names.GAIT_PHASE,
+        names.STANCE_SHAPE,
         names.JUMP_COMMAND,
     ),
     "ik_tether_allocator": (names.INERTIA_SETPOINT, names.IMU, names.INERTIA),

@@ -12,9 +12,11 @@ import numpy as np
 from splitter_bringup.analysis.jump_metrics import gait_summary, jumping_summary
 from splitter_bringup.analysis.metrics import Metric, flight_summary
 from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.analysis.touchdowns import touchdown_summary
 from splitter_bringup.scenario.definition import Scenario
 from splitter_model.model import RobotModel
 from splitter_sim.core.robot_errors import RobotErrors
+from splitter_sim.core.simulator import SimConfig
 
 LAST_TICK_S = 0.01 - 1e-9  # [s] one control period before the end (the last commanded)
 
@@ -31,6 +33,7 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
         metrics = {
             **jumping_summary(series, scenario.jumps, scenario.paper),
             **gait_summary(series, len(scenario.jumps)),
+            **touchdown_summary(series, SimConfig().leg_cone_half_angle_deg, plant_model(scenario)),
             **metrics,
         }
         metrics.pop("max_horizontal_speed_m_s", None)
@@ -45,6 +48,11 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
                 "control tick (the estimator's model has points unless it estimates it)",
             )
     return metrics
+
+
+def plant_model(scenario: Scenario) -> RobotModel:
+    """The simulated robot of ``scenario`` (its masses, ``robot_errors.mass_scale``)."""
+    return scenario.robot_errors.plant_model(RobotModel())
 
 
 def estimator_errors(series: RunSeries, errors: RobotErrors) -> tuple[float, float, float]:

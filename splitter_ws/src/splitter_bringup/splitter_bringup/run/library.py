@@ -214,6 +214,7 @@ def run_closed_loop(
             out = answer.output
             phase_name = out.phase.value
             mpc_tick.set_phase(phase_name)
+            mpc_tick.set_stance_shape(out.stance_shape)
             if out.reference is not None:
                 ref = out.reference
                 q_ref = received_quaternion(ref.q_ref_wxyz, hops=1)  # pose message

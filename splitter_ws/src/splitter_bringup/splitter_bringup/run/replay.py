@@ -72,11 +72,17 @@ MPC_INPUT_TOPICS = (
     names.IMU,
     names.INERTIA,
     names.GAIT_PHASE,
+    names.STANCE_SHAPE,
     names.ATTITUDE_REFERENCE,
     names.ATTITUDE_REFERENCE_POSE,
     names.JUMP_COMMAND,
 )
-GAIT_OUTPUTS = (names.GAIT_PHASE, names.ATTITUDE_REFERENCE, names.ATTITUDE_REFERENCE_POSE)
+GAIT_OUTPUTS = (
+    names.GAIT_PHASE,
+    names.STANCE_SHAPE,
+    names.ATTITUDE_REFERENCE,
+    names.ATTITUDE_REFERENCE_POSE,
+)
 TICK_INPUTS = (names.IMU, names.INERTIA)  # answered once both of a tick are in
 # order of the topics at one stamp (module doc)
 _RANK = {
@@ -207,7 +213,7 @@ def _read_bag(bag_dir: Path) -> _Bag:
             # the gait tick that published it: its jump command is logged at or after it
             i = bisect.bisect_left(jump_log_times, log_ns)
             stamp = jump_logs[i][1] if i < len(jump_logs) else None
-        elif topic == names.GAIT_PHASE:
+        elif topic in (names.GAIT_PHASE, names.STANCE_SHAPE):
             stamp = log_ns  # no gait manager's answers recorded: the phase's log time
         else:
             stamp = header_stamp_ns(data)

@@ -6,7 +6,9 @@ the measured state stamped on that tick; it re-plans on the re-plan grid
 for the tick from the current plan (docs/ARCHITECTURE.md, lockstep step 3).
 
 * Active in the airborne phases (IN_FLIGHT, LANDING; docs/ARCHITECTURE.md,
-  "Gait phases and the MPC"), once an attitude reference has been set. LANDED, it
+  "Gait phases and the MPC"), once an attitude reference has been set, until the
+  gait hands the limbs back to the legs (``stance_shape``: the predicted touchdown
+  is within its lead, or the robot is on the ground). LANDED, it
   holds its last setpoint (the robot keeps the shape it landed in). On the ground
   before a jump (LAUNCH, JUMP), before a reference, or disabled (open loop), it
   holds the nominal inertia: the configured one, else the first inertia it
@@ -290,10 +292,16 @@ class MorphingController(Closable):
         orientation_wxyz: ArrayLike,
         inertia_kg_m2: ArrayLike,
         phase: str | None = None,
+        *,
+        stance_shape: bool = False,
     ) -> NDArray[np.float64]:
         """Inertia setpoint [kg m^2] for tick ``t_ns`` from the state measured at ``t_ns``.
 
         ``phase`` is the gait phase name (None: unknown, treated as active).
+        ``stance_shape``: the limbs are legs (on the ground, or the touchdown the gait
+        predicts is within its lead): in the air the controller hands the limbs back
+        in their nominal shape and keeps the tether as it is (:meth:`_stance_setpoint`),
+        so the robot meets the ground on its legs with the spin it slowed.
         Raises ``ValueError`` for non-finite or malformed inputs (state unchanged).
         """
         t_ns = int(t_ns)
@@ -311,6 +319,7 @@ class MorphingController(Closable):
             self.config.enabled
             and self._reference is not None
             and (phase is None or phase not in INACTIVE_PHASES)
+            and not stance_shape
         )
         status = {
             "t_ns": t_ns,
@@ -323,8 +332,11 @@ class MorphingController(Closable):
                 self.mpc.reset()
             self._plan = None
             landed = self.config.enabled and phase == GaitPhase.LANDED.value
+            airborne = phase is None or phase not in INACTIVE_PHASES
             if landed and self._last_setpoint is not None:
                 setpoint = self._last_setpoint.copy()  # landed: keep the shape it landed in
+            elif self.config.enabled and stance_shape and airborne:
+                setpoint = self._stance_setpoint(inertia)
             else:
                 setpoint = self._nominal.copy()
         else:
@@ -353,6 +365,26 @@ class MorphingController(Closable):
             }
         )
         return setpoint
+
+    def _stance_setpoint(self, inertia: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The nominal limbs with the measured tether [kg m^2].
+
+        The moments are linear in the squared radii: the tether's part is
+        ``r_x^2 = (I_zz - I_xx + I_yy) / (4 M)`` (M a hemi's mass), and ``r_x^2`` adds
+        ``2 M r_x^2`` to ``I_yy`` and ``I_zz``. The nominal inertia with the measured
+        tether is therefore the nominal one plus ``2 M`` times the change of ``r_x^2``
+        on those two axes; a hemi body's own moments cancel in the change.
+        """
+        m = self.model
+        hemi_mass = m.body_mass_kg + 2.0 * m.limb_mass_y_kg + 2.0 * m.limb_mass_z_kg  # [kg]
+        nominal = self._nominal
+        assert nominal is not None
+
+        def tether_squared(i: NDArray[np.float64]) -> float:
+            return float(i[2] - i[0] + i[1]) / (4.0 * hemi_mass)
+
+        change = 2.0 * hemi_mass * (tether_squared(inertia) - tether_squared(nominal))
+        return nominal + np.array([0.0, change, change])
 
     def _update_recovery(self, w: NDArray[np.float64], inertia: NDArray[np.float64]) -> None:
         """Enter or leave recovery from the body rate across the reference axis."""

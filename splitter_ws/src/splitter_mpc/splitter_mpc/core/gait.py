@@ -282,6 +282,25 @@ def jump_wrench(
     return force.copy(), np.cross(hemi_offset_world(orientation_wxyz, radius_x_m, hemi), force)
 
 
+def predicted_touchdown_s(
+    height_m: float, vertical_speed_m_s: float, gravity_m_s2: float, touchdown_height_m: float
+) -> float:
+    """Time [s] until a body at ``height_m`` rising at ``vertical_speed_m_s`` falls to
+    ``touchdown_height_m`` under ``gravity_m_s2`` (ballistic); 0 at or below it, inf if
+    it never gets there (no gravity and not descending).
+
+    The later root of ``h + v t - g t^2 / 2 = h_td``:
+    ``t = (v + sqrt(v^2 + 2 g (h - h_td))) / g``.
+    """
+    above = height_m - touchdown_height_m
+    if above <= 0.0:
+        return 0.0
+    v, g = vertical_speed_m_s, gravity_m_s2
+    if g == 0.0:
+        return above / -v if v < 0.0 else math.inf
+    return (v + math.sqrt(v * v + 2.0 * g * above)) / g
+
+
 # --- the jump plan -------------------------------------------------------------------------
 class JumpLike(Protocol):
     """Anything shaped like ``splitter_bringup.scenario.definition.JumpSpec``."""
@@ -478,6 +497,20 @@ class GaitConfig:
     landing_w_ref_rad_s: tuple[float, float, float] = parameter_field(
         (0.0, 0.0, 0.0), "angular velocity reference during landing, base frame [rad/s]", length=3
     )
+    touchdown_height_m: float = parameter_field(
+        0.6,
+        "height of a hemi body at which its legs meet the ground: the stance shape's lowest "
+        "limb (0.2 m) plus the legs' 0.4 m stroke [m]",
+        bounds=(0.0, 10.0),
+        live=True,
+    )
+    stance_lead_s: float = parameter_field(
+        0.5,
+        "the limbs are handed back to the legs (stance shape) this long before the predicted "
+        "touchdown; 0: at contact [s]",
+        bounds=(0.0, 10.0),
+        live=True,
+    )
     attitude_reference: str = parameter_field(
         "integrate_w_ref",
         "attitude reference: hold the first measured attitude (initial), propagate it with "
@@ -496,7 +529,13 @@ class GaitConfig:
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: must be finite and > 0, got {value}")
-        for name in ("touchdown_debounce_s", "liftoff_debounce_s", "landed_dwell_s"):
+        for name in (
+            "touchdown_debounce_s",
+            "liftoff_debounce_s",
+            "landed_dwell_s",
+            "touchdown_height_m",
+            "stance_lead_s",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name}: must be finite and >= 0, got {value}")
@@ -594,6 +633,8 @@ class GaitOutput:
     jump_waiting: bool = False  # a jump is due but its hemi is not in stance
     on_ground: bool = False  # debounced ground contact (touchdown / lift-off events)
     reason: str = ""  # why the phase changed, on the tick it changed
+    touchdown_in_s: float = math.inf  # [s] predicted time to the next touchdown (inf: none)
+    stance_shape: bool = False  # the limbs are legs: on the ground or touchdown within the lead
 
     @property
     def thrusting(self) -> bool:
@@ -610,9 +651,15 @@ class _Thrust:
 
 # --- the machine -----------------------------------------------------------------------------
 class GaitPhaseMachine:
-    """Deterministic gait phase state machine; call :meth:`update` once per control tick."""
+    """Deterministic gait phase state machine; call :meth:`update` once per control tick.
 
-    def __init__(self, config: GaitConfig) -> None:
+    ``gravity_m_s2`` [m/s^2] predicts the touchdown (:func:`predicted_touchdown_s`).
+    """
+
+    def __init__(self, config: GaitConfig, gravity_m_s2: float = 0.0) -> None:
+        if not (math.isfinite(gravity_m_s2) and gravity_m_s2 >= 0.0):
+            raise ValueError(f"gravity_m_s2: must be finite and >= 0, got {gravity_m_s2}")
+        self.gravity_m_s2 = float(gravity_m_s2)
         self.config = config
         self._phase: GaitPhase | None = None
         self._phase_since_ns = 0
@@ -736,6 +783,13 @@ class GaitPhaseMachine:
             reference = self._new_reference(t_ns, q, rate, inertia, landing)
             self._reference = reference
 
+        touchdown_in_s = (
+            0.0
+            if self._on_ground
+            else predicted_touchdown_s(
+                min(heights), float(velocity[2]), self.gravity_m_s2, cfg.touchdown_height_m
+            )
+        )
         if self._thrust is not None:
             jump = cfg.jumps[self._thrust.index]
             force, torque = _split_jump_wrench(jump, q, radius_x, self._thrust.hemi)
@@ -756,6 +810,9 @@ class GaitPhaseMachine:
             jumps_planned=len(cfg.jumps),
             time_in_phase_ns=t_ns - self._phase_since_ns,
             jump_waiting=jump_waiting,
+            touchdown_in_s=touchdown_in_s,
+            stance_shape=self._on_ground
+            or (float(velocity[2]) < 0.0 and touchdown_in_s <= cfg.stance_lead_s),
             on_ground=self._on_ground,
             reason=reason if changed else "",
         )

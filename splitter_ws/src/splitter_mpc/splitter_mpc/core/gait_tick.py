@@ -144,6 +144,7 @@ class GaitAnswer:
     no_good_input: bool = False  # some input never had a good value yet
     error: str = ""  # the machine refused the (validated) inputs: a bug, reported
     diagnostics: tuple[int, str, dict[str, float | int | str | bool]] | None = None
+    stance_shape_changed: bool = False  # publish output.stance_shape (first output, changes)
 
 
 def _check_bound(field_name: str, values: ArrayLike, limit: float, unit: str) -> None:
@@ -163,7 +164,7 @@ class GaitTick:
         sensing: BodySensingConfig | None = None,
     ) -> None:
         self.settings = settings or GaitNodeSettings()
-        self.machine = GaitPhaseMachine(config)
+        self.machine = GaitPhaseMachine(config, (sensing or BodySensingConfig()).gravity_m_s2)
         self.body = BodyMotionEstimator(sensing)
         optional = (names.INERTIA,) if config.needs_principal_inertia else ()
         self.ticks = TickAssembler(self.settings.control_period_ns, TICK_INPUTS + optional)
@@ -173,6 +174,7 @@ class GaitTick:
         self.stale_ticks = 0  # ticks answered with a rejected input
         self.last_output: GaitOutput | None = None
         self.last_change: tuple[int, str] = (0, "")  # (stamp [ns], reason) of the last change
+        self._stance_shape: bool | None = None  # last published stance-shape flag
 
     @property
     def config(self) -> GaitConfig:
@@ -294,14 +296,17 @@ class GaitTick:
                 )
             except ValueError as exc:  # inputs are validated: a bug, reported, zero thrust
                 error = str(exc)
+        stance_changed = False
         if output is not None:
             self.last_output = output
             if output.phase_changed:
                 self.last_change = (t_ns, output.reason)
+            stance_changed = output.stance_shape != self._stance_shape
+            self._stance_shape = output.stance_shape
         diagnostics = None
         if t_ns % self.settings.diagnostics_period_ns == 0:
             diagnostics = self.diagnostics()
-        return GaitAnswer(t_ns, output, no_good_input, error, diagnostics)
+        return GaitAnswer(t_ns, output, no_good_input, error, diagnostics, stance_changed)
 
     def diagnostics(self) -> tuple[int, str, dict[str, float | int | str | bool]]:
         """(level, message, values) of the gait phase status, for ``/diagnostics``."""
@@ -330,6 +335,8 @@ class GaitTick:
                 "hemi_a_height_m": output.hemi_height_m[0],
                 "hemi_b_height_m": output.hemi_height_m[1],
                 "jump_force_z_n": float(output.jump_force_n[2]),
+                "touchdown_in_s": min(output.touchdown_in_s, 1e9),
+                "stance_shape": output.stance_shape,
             }
         )
         message = output.phase.value

@@ -13,7 +13,8 @@ object with plain values (:meth:`MpcTick.set_phase`, :meth:`MpcTick.set_referenc
   topic, never far ahead, and a tick's input never before the last tick answered
   (:attr:`MpcTick.last_answered`).
 * Waits (lockstep): a tick is answered once the attitude reference is set, the
-  gait phase is known when a gait manager publishes one, and that manager has
+  gait phase (and the stance-shape flag) is known when a gait manager publishes one,
+  and that manager has
   answered the tick (its jump command stamped ``t``): it publishes the phase and
   reference of tick ``t`` before that command, so tick ``t`` plans with them
   whatever the message timing, in the library loop's order (gait, then MPC). The
@@ -208,6 +209,7 @@ class MpcTick:
         self.stamps = StampGate()
         self.latency = InputLatency()  # a tick's state: simulated clock when used - stamp
         self.phase: str | None = None
+        self.stance_shape: bool | None = None  # the limbs are legs (None: not told yet)
         self.last_answered: int | None = None  # [ns] the last tick answered
         self.answered = 0
         self._w_ref: NDArray[np.float64] | None = None
@@ -257,6 +259,10 @@ class MpcTick:
             if value not in names.GAIT_PHASES:
                 raise ValueError(f"unknown phase {value!r}")
             self.phase = str(value)
+        elif topic == names.STANCE_SHAPE:
+            if not isinstance(value, bool):
+                raise ValueError(f"stance shape must be a bool, got {value!r}")
+            self.stance_shape = value
         elif topic in self.tick_inputs:
             events = self.ticks.add(topic, t_ns, value)
             if events.completed is not None:
@@ -276,6 +282,10 @@ class MpcTick:
     def set_phase(self, phase: str, clock_ns: ClockNs = None) -> MpcAnswer | None:
         """The gait phase (``ValueError`` for an unknown one)."""
         return self.add(names.GAIT_PHASE, None, phase, clock_ns)
+
+    def set_stance_shape(self, stance_shape: bool, clock_ns: ClockNs = None) -> MpcAnswer | None:
+        """Whether the limbs are legs now (the gait's ``/splitter/gait/stance_shape``)."""
+        return self.add(names.STANCE_SHAPE, None, bool(stance_shape), clock_ns)
 
     def set_reference(
         self, stamp_ns: int, w_ref_rad_s: ArrayLike, q_ref_wxyz: ArrayLike
@@ -328,6 +338,8 @@ class MpcTick:
             return True
         if self.phase is None and self.has_publisher(names.GAIT_PHASE):
             return True
+        if self.stance_shape is None and self.has_publisher(names.STANCE_SHAPE):
+            return True
         if self._gait_answered is not None and self._gait_answered >= t_ns:
             return False
         return self.has_publisher(names.JUMP_COMMAND)
@@ -347,7 +359,9 @@ class MpcTick:
             w = angular_velocity_after_morphing(w, inertia, self._last_setpoint)
             inertia = self._last_setpoint
         try:
-            setpoint = self.controller.on_state(t_ns, w, q, inertia, self.phase)
+            setpoint = self.controller.on_state(
+                t_ns, w, q, inertia, self.phase, stance_shape=bool(self.stance_shape)
+            )
         except ValueError as exc:  # inputs checked on arrival; keep running regardless
             return MpcAnswer(t_ns, None, error=str(exc))
         self._last_setpoint = np.asarray(setpoint, dtype=float).copy()

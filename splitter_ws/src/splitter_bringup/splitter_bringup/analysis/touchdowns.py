@@ -1,0 +1,169 @@
+"""Every touchdown of a run, as a landing controller is judged (issue: landing as a goal).
+
+ROS-free, from a :class:`RunSeries` however it was made (library loop or bag). A
+touchdown is the end of a flight (no hemi in contact for at least
+``jump_metrics.MIN_FLIGHT_S``). For each one, at the first contact:
+
+* ``tether_tilt_deg``: the tether axis (body x) from the ground plane;
+* ``legs_tilt_deg``: each hemi's leg axis (its belly normal, body +z) from the
+  ground normal; the hemis are one rigid body in the lumped model, so the two
+  hemis' angles are the same number; the legs reach the ground within the
+  simulator's workspace cone (``SimConfig.leg_cone_half_angle_deg``);
+* ``stagger_s``: time between the two hemis' first contacts (NaN if one hemi did
+  not touch within ``TOUCHDOWN_WINDOW_S``);
+* ``impact_{a,b}_n``: the largest ground force on each hemi within
+  ``TOUCHDOWN_WINDOW_S``;
+* ``on_legs``: the legs faced the ground and no lumped mass went below it
+  (deeper than ``BODY_CONTACT_DEPTH_M``) within ``TOUCHDOWN_WINDOW_S``.
+
+The whole run also reports how long any lumped mass was on the ground (a landing
+on the body, which the contact model makes hard).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from splitter_bringup.analysis.jump_metrics import MIN_FLIGHT_S, STANCE_FORCE_N
+from splitter_bringup.analysis.metrics import Metric
+from splitter_bringup.analysis.series import RunSeries
+from splitter_model.model import RobotModel
+from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
+from splitter_sim.core.scene import SceneGeometry
+
+TOUCHDOWN_WINDOW_S = 0.5  # [s] after the first contact: impact, stagger, body contact
+# [m] a lumped mass this far below the ground touches it (the standing robot's start
+# pose leaves its lowest limb tip 0.3 mm in the ground).
+BODY_CONTACT_DEPTH_M = 1.0e-3
+
+
+@dataclass(frozen=True)
+class Touchdown:
+    """One touchdown (module docstring for each figure)."""
+
+    t_s: float  # [s] first contact
+    tether_tilt_deg: float
+    legs_tilt_deg: float
+    stagger_s: float
+    impact_n: tuple[float, float]  # [N] hemi a, hemi b
+    on_legs: bool
+
+
+def _contact(series: RunSeries) -> NDArray[np.bool_] | None:
+    force = series.extras.get("contact_force_n")
+    if force is None:
+        return None
+    return np.linalg.norm(np.asarray(force, dtype=float), axis=2) > STANCE_FORCE_N  # (n, 2)
+
+
+def lowest_mass_heights_m(series: RunSeries, model: RobotModel | None = None) -> NDArray:
+    """World height [m] of the lowest lumped mass at each sample (inf far above the ground).
+
+    Mass positions from the recorded joint positions and pose (the scene's geometry);
+    samples whose centre of mass is more than the robot's reach above the ground are
+    skipped.
+    """
+    geometry = SceneGeometry(model)
+    reach = math.hypot(geometry.model.radius_x_max_m, geometry.model.limb_radius_max_m)
+    out = np.full(len(series), np.inf)
+    for i in np.flatnonzero(series.position_m[:, 2] <= reach + 0.5):
+        world = geometry.world_positions(
+            series.position_m[i], series.orientation_wxyz[i], series.joint_position[i]
+        )
+        out[i] = float(world[:, 2].min())
+    return out
+
+
+def touchdowns(
+    series: RunSeries, cone_half_angle_deg: float, model: RobotModel | None = None
+) -> list[Touchdown]:
+    """Every touchdown of ``series`` (module docstring)."""
+    contact = _contact(series)
+    if contact is None or len(series) == 0:
+        return []
+    t = series.t_s
+    any_contact = contact.any(axis=1)
+    lowest = lowest_mass_heights_m(series, model)
+    force = np.linalg.norm(np.asarray(series.extras["contact_force_n"], dtype=float), axis=2)
+    out = []
+    airborne_since = None if any_contact[0] else 0
+    for i in range(1, len(series)):
+        if not any_contact[i]:
+            if airborne_since is None:
+                airborne_since = i
+            continue
+        if airborne_since is None:
+            continue
+        flown = t[i] - t[airborne_since]
+        airborne_since = None
+        if flown < MIN_FLIGHT_S:
+            continue
+        window = (t >= t[i]) & (t <= t[i] + TOUCHDOWN_WINDOW_S)
+        first = [
+            float(t[window][np.argmax(contact[window, h])]) if contact[window, h].any() else None
+            for h in range(2)
+        ]
+        stagger = abs(first[0] - first[1]) if None not in first else math.nan
+        rot = rotation_matrix(series.orientation_wxyz[i])
+        legs_tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(rot[2, 2])))))
+        out.append(
+            Touchdown(
+                t_s=float(t[i]),
+                tether_tilt_deg=math.degrees(math.asin(min(1.0, abs(float(rot[2, 0]))))),
+                legs_tilt_deg=legs_tilt,
+                stagger_s=stagger,
+                impact_n=(float(force[window, 0].max()), float(force[window, 1].max())),
+                on_legs=bool(
+                    legs_tilt <= cone_half_angle_deg
+                    and lowest[window].min() > -BODY_CONTACT_DEPTH_M
+                ),
+            )
+        )
+    return out
+
+
+def touchdown_summary(
+    series: RunSeries, cone_half_angle_deg: float, model: RobotModel | None = None
+) -> dict[str, Metric]:
+    """The touchdowns and the time on the body, as summary metrics."""
+    if "contact_force_n" not in series.extras or len(series) == 0:
+        return {}
+    events = touchdowns(series, cone_half_angle_deg, model)
+    out = {
+        "touchdowns": Metric(float(len(events)), "-", "ends of a flight (first contact)"),
+        "touchdowns_on_legs": Metric(
+            float(sum(e.on_legs for e in events)),
+            "-",
+            f"touchdowns with the legs within their {cone_half_angle_deg:g} deg cone and no "
+            f"lumped mass on the ground for {TOUCHDOWN_WINDOW_S:g} s",
+        ),
+    }
+    lowest = lowest_mass_heights_m(series, model)
+    dt = np.diff(series.t_s, append=series.t_s[-1])
+    out["body_ground_contact_s"] = Metric(
+        float(dt[lowest < -BODY_CONTACT_DEPTH_M].sum()),
+        "s",
+        "time any lumped mass (body or limb tip) is on the ground: a landing on the body",
+    )
+    for k, e in enumerate(events, start=1):
+        out[f"touchdown_{k}_t_s"] = Metric(e.t_s, "s", f"touchdown {k}: first contact")
+        out[f"touchdown_{k}_tether_tilt_deg"] = Metric(
+            e.tether_tilt_deg, "deg", f"touchdown {k}: tether axis from the ground plane"
+        )
+        out[f"touchdown_{k}_legs_tilt_deg"] = Metric(
+            e.legs_tilt_deg,
+            "deg",
+            f"touchdown {k}: each hemi's legs (belly normal) from the ground normal",
+        )
+        out[f"touchdown_{k}_stagger_s"] = Metric(
+            e.stagger_s, "s", f"touchdown {k}: time between the two hemis' first contacts"
+        )
+        for h, hemi in enumerate("ab"):
+            out[f"touchdown_{k}_impact_{hemi}_n"] = Metric(
+                e.impact_n[h], "N", f"touchdown {k}: largest ground force on hemi {hemi}"
+            )
+    return out
