@@ -29,9 +29,13 @@ def test_scenario_plan_round_trips_through_parameters() -> None:
         params["jump_forces_n"],
         params["jump_durations_s"],
         params["jump_hemis"],
+        params["jump_forces_b_n"],
     )
     assert plan == tuple(PlannedJump.from_spec(j) for j in scenario.jumps)
-    assert [j.hemi for j in plan] == ["auto", "auto"]  # the hemis in stance share each push
+    # The launch: both hemis at once, each its own push (a couple: the spin); the second
+    # jump shared by the hemis in stance.
+    assert [j.hemi for j in plan] == ["both", "auto"]
+    assert plan[0].force_n[1] == -plan[0].force_b_n[1] != 0.0
     assert plan[1].time_ns == 5_000_000_000 and plan[0].duration_ns == 600_000_000
 
 

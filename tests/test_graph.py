@@ -198,6 +198,14 @@ def test_lunar_jumping_jumps_twice_and_ends_landed() -> None:
     assert vx[second].max() > vx[~second].max()  # the second jump adds energy
     assert 2.0 <= vx.max() <= 4.0
     assert np.linalg.norm(odom[-1].velocity_world_m_s) < 0.05
+    # The launch adds a spin (issue 26), about the vertical; the MPC slows it in flight
+    # and the gait hands the limbs back to the legs before each touchdown.
+    spin = np.array([np.linalg.norm(o.angular_velocity_rad_s) for o in odom])
+    flight_1 = (t > 0.5) & (t < scenario.jumps[1].time_s - 0.5)
+    assert spin[flight_1].max() >= 0.2
+    assert spin[flight_1][-1] < 0.95 * spin[flight_1].max()
+    stance = [m.data for m in record.messages(names.STANCE_SHAPE)]
+    assert stance[:3] == [True, False, True]  # standing, flying, handed back before touching
     wrenches = {
         topic: [conv.wrench_from_msg(m) for m in record.messages(topic)]
         for topic in names.CONTACT_WRENCHES

@@ -32,8 +32,10 @@ def _series(pitch_deg: float, roll_deg: float, com_height_m: float) -> RunSeries
     position[:, 2] = np.where(t < 1.0, 3.0, com_height_m)
     joints = np.tile(joint_positions_from_radii(MODEL, (2.8, 0.2, 0.2)), (n, 1))
     zeros = np.zeros((n, 3))
+    w = np.zeros((n, 3))
+    w[:, 2] = np.where(t < 0.5, 0.4, 0.3)  # [rad/s] a spin slowed in flight
     return RunSeries(
-        t, zeros, q, zeros, zeros, zeros, position, zeros, joints, 1.62,
+        t, w, q, zeros, zeros, zeros, position, zeros, joints, 1.62,
         extras={"contact_force_n": contact},
     )  # fmt: skip
 
@@ -48,6 +50,7 @@ def test_a_tilted_staggered_touchdown_on_the_legs() -> None:
     assert event.stagger_s == pytest.approx(0.1)
     assert event.impact_n == (150.0, 180.0)
     assert event.on_legs
+    assert event.angular_speed_rad_s == 0.3 and event.flight_peak_angular_speed_rad_s == 0.4
 
 
 def test_a_touchdown_outside_the_cone_or_on_a_mass_is_on_the_body() -> None:

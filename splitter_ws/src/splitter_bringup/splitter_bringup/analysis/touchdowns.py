@@ -14,7 +14,9 @@ touchdown is the end of a flight (no hemi in contact for at least
 * ``impact_{a,b}_n``: the largest ground force on each hemi within
   ``TOUCHDOWN_WINDOW_S``;
 * ``on_legs``: the legs faced the ground and no lumped mass went below it
-  (deeper than ``BODY_CONTACT_DEPTH_M``) within ``TOUCHDOWN_WINDOW_S``.
+  (deeper than ``BODY_CONTACT_DEPTH_M``) within ``TOUCHDOWN_WINDOW_S``;
+* ``angular_speed_rad_s``: the spin the ground meets; and the largest ``|w|`` of
+  the flight that ends there (a launch's spin shows in flight 1).
 
 The whole run also reports how long any lumped mass was on the ground (a landing
 on the body, which the contact model makes hard).
@@ -51,6 +53,8 @@ class Touchdown:
     stagger_s: float
     impact_n: tuple[float, float]  # [N] hemi a, hemi b
     on_legs: bool
+    angular_speed_rad_s: float = math.nan  # [rad/s] |w| at the first contact
+    flight_peak_angular_speed_rad_s: float = math.nan  # [rad/s] largest |w| of the flight
 
 
 def _contact(series: RunSeries) -> NDArray[np.bool_] | None:
@@ -99,9 +103,10 @@ def touchdowns(
         if airborne_since is None:
             continue
         flown = t[i] - t[airborne_since]
-        airborne_since = None
+        took_off, airborne_since = airborne_since, None
         if flown < MIN_FLIGHT_S:
             continue
+        spin = np.linalg.norm(series.angular_velocity_rad_s[took_off : i + 1], axis=1)
         window = (t >= t[i]) & (t <= t[i] + TOUCHDOWN_WINDOW_S)
         first = [
             float(t[window][np.argmax(contact[window, h])]) if contact[window, h].any() else None
@@ -121,6 +126,8 @@ def touchdowns(
                     legs_tilt <= cone_half_angle_deg
                     and lowest[window].min() > -BODY_CONTACT_DEPTH_M
                 ),
+                angular_speed_rad_s=float(spin[-1]),
+                flight_peak_angular_speed_rad_s=float(spin.max()),
             )
         )
     return out
@@ -151,6 +158,14 @@ def touchdown_summary(
     )
     for k, e in enumerate(events, start=1):
         out[f"touchdown_{k}_t_s"] = Metric(e.t_s, "s", f"touchdown {k}: first contact")
+        out[f"flight_{k}_peak_w_rad_s"] = Metric(
+            e.flight_peak_angular_speed_rad_s,
+            "rad/s",
+            f"largest |w| of the flight ending at touchdown {k}",
+        )
+        out[f"touchdown_{k}_w_rad_s"] = Metric(
+            e.angular_speed_rad_s, "rad/s", f"touchdown {k}: |w| the ground meets"
+        )
         out[f"touchdown_{k}_tether_tilt_deg"] = Metric(
             e.tether_tilt_deg, "deg", f"touchdown {k}: tether axis from the ground plane"
         )
