@@ -61,3 +61,22 @@ def test_pushes_that_overlap_are_refused_and_told_how_to_push_both(tmp_path: Pat
     )
     with pytest.raises(ScenarioError, match=r"jumps\[1\]\.time_s.*hemi: both"):
         load_scenario(_scenario(tmp_path, two))
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("duration_s: 1.0\ngroundd: {slope_deg: 5}\n", "groundd"),
+        ("duration_s: 1.0\ninitial: {positon_m: [0, 0, 1]}\n", r"initial\.positon_m"),
+        ("duration_s: 1.0\ncontroller: {q_ww: [1, 1, 1]}\n", r"controller\.q_ww"),
+        (
+            "duration_s: 1.0\nvariants: {v: {initial: {radius_m: [1, 1, 1]}}}\n",
+            r"initial\.radius_m",
+        ),
+    ],
+)
+def test_a_misspelt_field_is_an_error_not_a_default(tmp_path: Path, text: str, field: str) -> None:
+    path = tmp_path / "typo.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=f"{field}: unknown field"):
+        load_scenario(path)

@@ -354,9 +354,66 @@ def load_scenario(name_or_path: str | Path, variant: str | None = None) -> Scena
     return _from_dict(merged, chosen, tuple(variants), path.stem)
 
 
+SCENARIO_FIELDS = (
+    "name",
+    "description",
+    "duration_s",
+    "gravity",
+    "sim_dt_s",
+    "ground_contact",
+    "compliant_legs",
+    "initial",
+    "controller",
+    "jumps",
+    "paper",
+    "findings",
+    "robot_errors",
+    "estimator",
+)
+INITIAL_FIELDS = (
+    "angular_velocity_rad_s",
+    "orientation_euler_deg",
+    "position_m",
+    "velocity_m_s",
+    "radii_m",
+)
+CONTROLLER_FIELDS = (
+    "enabled",
+    "w_ref_rad_s",
+    "q_w",
+    "r",
+    "q_t",
+    "q_q",
+    "q_tq",
+    "attitude_reference",
+    "objective",
+    "horizon",
+    "dt_s",
+    "integrator",
+    "weights_step_s",
+    "recovery_spin_rad_s",
+    "recovery_momentum_ratio_max",
+)
+
+
+def _known_fields(data: Any, where: str, known: tuple[str, ...]) -> Mapping[str, Any]:
+    """``data`` (a mapping, None: empty) whose keys are all ``known``; a typo is an error
+    naming it (a misspelt field would otherwise silently take its default)."""
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping):
+        raise ScenarioError(f"{where}: expected a mapping, got {data!r}")
+    unknown = sorted(set(data) - set(known))
+    if unknown:
+        prefix = f"{where}." if where else ""
+        raise ScenarioError(f"{prefix}{unknown[0]}: unknown field; use {sorted(known)}")
+    return data
+
+
 def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem: str) -> Scenario:
-    initial = d.get("initial", {}) or {}
-    ctrl = d.get("controller", {}) or {}
+    _known_fields(d, "", SCENARIO_FIELDS)
+    initial = _known_fields(d.get("initial"), "initial", INITIAL_FIELDS)
+    ctrl = _known_fields(d.get("controller"), "controller", CONTROLLER_FIELDS)
     try:
         gravity = gravity_from_name(d.get("gravity", "zero"))
     except ValueError as exc:
