@@ -34,7 +34,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from splitter_model.model import RobotModel
+from splitter_model.model import (
+    InfeasibleInertiaError,
+    RobotModel,
+    principal_inertia,
+    radii_from_inertia,
+)
 from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
 from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import (
@@ -224,6 +229,7 @@ class MorphingController(Closable):
             else np.asarray(self.config.nominal_inertia_kg_m2, dtype=float)
         )
         self._last_setpoint: NDArray[np.float64] | None = None
+        self._stance_limbs_m: NDArray[np.float64] | None = None  # [m] r_y, r_z of the legs
         self._recovering = False
         self._failures_to_inject = 0
         self._status = ControllerStatus(solver=self.mpc.settings.solver)
@@ -369,22 +375,26 @@ class MorphingController(Closable):
     def _stance_setpoint(self, inertia: NDArray[np.float64]) -> NDArray[np.float64]:
         """The nominal limbs with the measured tether [kg m^2].
 
-        The moments are linear in the squared radii: the tether's part is
-        ``r_x^2 = (I_zz - I_xx + I_yy) / (4 M)`` (M a hemi's mass), and ``r_x^2`` adds
-        ``2 M r_x^2`` to ``I_yy`` and ``I_zz``. The nominal inertia with the measured
-        tether is therefore the nominal one plus ``2 M`` times the change of ``r_x^2``
-        on those two axes; a hemi body's own moments cancel in the change.
+        In the allocator's terms, which turn the setpoint into joints: radii from the
+        moments with the controller's nominal masses (the paper's closed form), ``r_x``
+        measured now and clipped to the tether's range, ``r_y`` and ``r_z`` of the
+        nominal shape (the first measured inertia: the legs' stance), back to moments.
+        (With the MPC's estimated masses instead, a tether near its end asked the
+        allocator for more than 3.0 m, and its projection kept the limbs out.) A
+        measurement the closed form refuses gives the nominal inertia.
         """
-        m = self.model
-        hemi_mass = m.body_mass_kg + 2.0 * m.limb_mass_y_kg + 2.0 * m.limb_mass_z_kg  # [kg]
+        model = self.model
         nominal = self._nominal
         assert nominal is not None
-
-        def tether_squared(i: NDArray[np.float64]) -> float:
-            return float(i[2] - i[0] + i[1]) / (4.0 * hemi_mass)
-
-        change = 2.0 * hemi_mass * (tether_squared(inertia) - tether_squared(nominal))
-        return nominal + np.array([0.0, change, change])
+        try:
+            if self._stance_limbs_m is None:
+                self._stance_limbs_m = radii_from_inertia(model, nominal)[1:]
+            radius_x = float(radii_from_inertia(model, inertia)[0])
+        except InfeasibleInertiaError as exc:
+            _LOG.warning("stance shape from the nominal inertia: %s", exc)
+            return nominal.copy()
+        radius_x = min(max(radius_x, model.radius_x_min_m), model.radius_x_max_m)
+        return principal_inertia(model, (radius_x, *self._stance_limbs_m))
 
     def _update_recovery(self, w: NDArray[np.float64], inertia: NDArray[np.float64]) -> None:
         """Enter or leave recovery from the body rate across the reference axis."""

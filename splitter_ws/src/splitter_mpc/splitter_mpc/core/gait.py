@@ -505,7 +505,7 @@ class GaitConfig:
         live=True,
     )
     stance_lead_s: float = parameter_field(
-        0.5,
+        0.8,
         "the limbs are handed back to the legs (stance shape) this long before the predicted "
         "touchdown; 0: at contact [s]",
         bounds=(0.0, 10.0),
