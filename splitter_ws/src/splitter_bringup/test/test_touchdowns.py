@@ -64,3 +64,14 @@ def test_a_touchdown_outside_the_cone_or_on_a_mass_is_on_the_body() -> None:
     assert summary["touchdown_1_impact_b_n"].value == 180.0
     high = touchdown_summary(_series(0.0, 0.0, 0.5), CONE_DEG, MODEL)
     assert high["touchdowns_on_legs"].value == 1.0 and high["body_ground_contact_s"].value == 0.0
+
+
+def test_the_gait_figure_marks_each_touchdown(tmp_path) -> None:
+    from splitter_bringup.figures.plots import plot_gait
+
+    series = _series(0.0, 0.0, 0.1)
+    series.gait_phase = ["IN_FLIGHT"] * len(series)
+    events = touchdowns(series, CONE_DEG, MODEL)
+    assert [e.on_legs for e in events] == [False]
+    path = plot_gait(series, tmp_path / "gait.png", "touchdowns", 196.1, events)
+    assert path.stat().st_size > 10_000

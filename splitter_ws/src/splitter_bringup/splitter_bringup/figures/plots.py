@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from splitter_bringup.analysis.metrics import FindingResult
 from splitter_bringup.analysis.series import RunSeries
+from splitter_bringup.analysis.touchdowns import Touchdown
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix
 from splitter_sim.core.robot_errors import RobotErrors
@@ -251,10 +252,16 @@ PHASE_COLOURS = {
 
 
 def plot_gait(
-    series: RunSeries, path: Path, title: str = "", force_limit_n: float | None = None
+    series: RunSeries,
+    path: Path,
+    title: str = "",
+    force_limit_n: float | None = None,
+    touchdown_events: Sequence[Touchdown] = (),
 ) -> Path:
     """The paper's Fig. "full" for a jumping run: height, v_x, |w| and ground force per hemi
-    over time, the gait phases as coloured bands (and the limbs' force limit)."""
+    over time, the gait phases as coloured bands (and the limbs' force limit); each
+    touchdown of ``touchdown_events`` a vertical line on the force panel, green on the
+    legs, red on the body, with the tether's tilt."""
     from splitter_bringup.analysis.jump_metrics import phase_spans
 
     t = series.t_s
@@ -272,6 +279,19 @@ def plot_gait(
         axes[3].plot(t, force[:, 1], label="hemi b", linestyle="--")
     if force_limit_n is not None:
         axes[3].axhline(force_limit_n, color="r", linewidth=0.8, label="limbs' dynamic limit")
+    for k, event in enumerate(touchdown_events, start=1):
+        colour = "g" if event.on_legs else "r"
+        axes[3].axvline(event.t_s, color=colour, linestyle=":", linewidth=1.0)
+        axes[3].annotate(
+            f"TD{k} {'legs' if event.on_legs else 'BODY'}, tilt {event.tether_tilt_deg:.0f} deg",
+            (event.t_s, 0.9),
+            xycoords=("data", "axes fraction"),
+            fontsize=7,
+            color=colour,
+            rotation=90,
+            va="top",
+            ha="right",
+        )
     axes[3].set_ylabel("ground force [N]")
     axes[3].set_xlabel("t [s]")
     axes[3].legend(loc="upper right", fontsize=8)
