@@ -95,6 +95,22 @@ def test_unequal_pushes_launch_a_spin_with_the_angular_impulse_of_the_wrench() -
     assert np.linalg.norm(angular_impulse) > 10.0  # [N m s] both pushed a while
 
 
+def test_a_shared_push_loses_the_half_of_a_hemi_out_of_reach() -> None:
+    """ "auto": each hemi's legs push half. Tilted so that hemi a (+x) is beyond the legs'
+    stroke, hemi b pushes its half alone; legs cannot hand their force to the other's."""
+    from scipy.spatial.transform import Rotation
+
+    xyzw = Rotation.from_euler("y", -12.0, degrees=True).as_quat()  # hemi a up
+    initial = InitialState(position_m=(0.0, 0.0, 0.8), orientation_wxyz=(xyzw[3], *xyzw[:3]))
+    sim = Simulator(RobotModel(), SimConfig(gravity_m_s2=1.62), initial)
+    heights = sim.state().mass_positions_world_m[:, 2]
+    assert heights[:5].min() > 0.4 > heights[5:].min()  # hemi a out of reach, b within
+    force = np.array([40.0, 0.0, 320.0])  # [N]
+    sim.command_jump_force(force, "auto")
+    np.testing.assert_array_equal(sim.state().leg_force_n[0], 0.0)
+    np.testing.assert_allclose(sim.state().leg_force_n[1], force / 2.0)
+
+
 def test_lockstep_steps_when_every_topic_answered_or_after_the_timeout() -> None:
     wait = LockstepWait(("joints", "jump"), timeout_s=1.0)
     has_publisher = {"joints": True, "jump": False}.get

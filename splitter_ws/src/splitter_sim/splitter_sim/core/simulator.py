@@ -531,7 +531,8 @@ class Simulator:
 
         The force acts on the pushing hemi's body (so it also exerts a moment about
         the COM) while that hemi is within ``SimConfig.thrust_stroke_m`` of the
-        ground; "auto" splits it equally over the hemis within reach. Zero = no thrust.
+        ground; "auto": each hemi within reach pushes half (a hemi out of reach takes its
+        half away, its legs cannot hand it to the other's). Zero = no thrust.
         """
         f = _finite_force(force_world_n, "jump force")
         if hemi not in ("a", "b", "auto"):
@@ -650,7 +651,9 @@ class Simulator:
             pushing = [h for h in range(2) if reach[h]]
         if not pushing:
             return ()
-        share = 1.0 / len(pushing)
+        # "auto": each hemi's legs push half; one that leaves its stroke takes its half
+        # away (legs cannot hand their force to the other hemi's legs).
+        share = 0.5 if self._jump_hemi == "auto" else 1.0
         return tuple((HEMI_BODY_INDEX[h], fx * share, fy * share, fz * share) for h in pushing)
 
     def _leg_terms(
