@@ -83,15 +83,19 @@ def lowest_mass_heights_m(series: RunSeries, model: RobotModel | None = None) ->
 
 
 def touchdowns(
-    series: RunSeries, cone_half_angle_deg: float, model: RobotModel | None = None
+    series: RunSeries,
+    cone_half_angle_deg: float,
+    model: RobotModel | None = None,
+    lowest_m: NDArray | None = None,
 ) -> list[Touchdown]:
-    """Every touchdown of ``series`` (module docstring)."""
+    """Every touchdown of ``series`` (module docstring); ``lowest_m``: the series'
+    :func:`lowest_mass_heights_m` when already computed."""
     contact = _contact(series)
     if contact is None or len(series) == 0:
         return []
     t = series.t_s
     any_contact = contact.any(axis=1)
-    lowest = lowest_mass_heights_m(series, model)
+    lowest = lowest_mass_heights_m(series, model) if lowest_m is None else lowest_m
     force = np.linalg.norm(np.asarray(series.extras["contact_force_n"], dtype=float), axis=2)
     out = []
     airborne_since = None if any_contact[0] else 0
@@ -139,7 +143,8 @@ def touchdown_summary(
     """The touchdowns and the time on the body, as summary metrics."""
     if "contact_force_n" not in series.extras or len(series) == 0:
         return {}
-    events = touchdowns(series, cone_half_angle_deg, model)
+    lowest = lowest_mass_heights_m(series, model)
+    events = touchdowns(series, cone_half_angle_deg, model, lowest)
     out = {
         "touchdowns": Metric(float(len(events)), "-", "ends of a flight (first contact)"),
         "touchdowns_on_legs": Metric(
@@ -149,7 +154,6 @@ def touchdown_summary(
             f"lumped mass on the ground for {TOUCHDOWN_WINDOW_S:g} s",
         ),
     }
-    lowest = lowest_mass_heights_m(series, model)
     dt = np.diff(series.t_s, append=series.t_s[-1])
     out["body_ground_contact_s"] = Metric(
         float(dt[lowest < -BODY_CONTACT_DEPTH_M].sum()),
@@ -157,28 +161,20 @@ def touchdown_summary(
         "time any lumped mass (body or limb tip) is on the ground: a landing on the body",
     )
     for k, e in enumerate(events, start=1):
-        out[f"touchdown_{k}_t_s"] = Metric(e.t_s, "s", f"touchdown {k}: first contact")
-        out[f"flight_{k}_peak_w_rad_s"] = Metric(
-            e.flight_peak_angular_speed_rad_s,
-            "rad/s",
-            f"largest |w| of the flight ending at touchdown {k}",
-        )
-        out[f"touchdown_{k}_w_rad_s"] = Metric(
-            e.angular_speed_rad_s, "rad/s", f"touchdown {k}: |w| the ground meets"
-        )
-        out[f"touchdown_{k}_tether_tilt_deg"] = Metric(
-            e.tether_tilt_deg, "deg", f"touchdown {k}: tether axis from the ground plane"
-        )
-        out[f"touchdown_{k}_legs_tilt_deg"] = Metric(
-            e.legs_tilt_deg,
-            "deg",
-            f"touchdown {k}: each hemi's legs (belly normal) from the ground normal",
-        )
-        out[f"touchdown_{k}_stagger_s"] = Metric(
-            e.stagger_s, "s", f"touchdown {k}: time between the two hemis' first contacts"
-        )
-        for h, hemi in enumerate("ab"):
-            out[f"touchdown_{k}_impact_{hemi}_n"] = Metric(
-                e.impact_n[h], "N", f"touchdown {k}: largest ground force on hemi {hemi}"
-            )
+        rows = (
+            (f"touchdown_{k}_t_s", e.t_s, "s", "first contact"),
+            (f"flight_{k}_peak_w_rad_s", e.flight_peak_angular_speed_rad_s, "rad/s",
+             "largest |w| of the flight ending here"),
+            (f"touchdown_{k}_w_rad_s", e.angular_speed_rad_s, "rad/s", "|w| the ground meets"),
+            (f"touchdown_{k}_tether_tilt_deg", e.tether_tilt_deg, "deg",
+             "tether axis from the ground plane"),
+            (f"touchdown_{k}_legs_tilt_deg", e.legs_tilt_deg, "deg",
+             "each hemi's legs (belly normal) from the ground normal"),
+            (f"touchdown_{k}_stagger_s", e.stagger_s, "s",
+             "time between the two hemis' first contacts"),
+            (f"touchdown_{k}_impact_a_n", e.impact_n[0], "N", "largest ground force on hemi a"),
+            (f"touchdown_{k}_impact_b_n", e.impact_n[1], "N", "largest ground force on hemi b"),
+        )  # fmt: skip
+        for name, value, unit, meaning in rows:
+            out[name] = Metric(value, unit, f"touchdown {k}: {meaning}")
     return out
