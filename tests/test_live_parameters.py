@@ -76,6 +76,8 @@ EXPECTED_LIVE = {
         "landed_speed_m_s",
         "landed_angular_speed_rad_s",
         "landed_dwell_s",
+        "jump_settle_speed_m_s",
+        "jump_settle_angular_speed_rad_s",
     },
 }
 W0 = np.array([-0.3, -0.9, 0.9])  # [rad/s] Table I's initial rate

@@ -102,7 +102,9 @@ def test_scripted_sequence_launch_flight_jump_flight_landing_landed() -> None:
             normal = (STANCE_N, 0.0)
         else:
             normal = (0.0, 0.0)
-        if t_ms < 2600:
+        if 1000 <= t_ms < 2010:
+            velocity = (1.0, 0.0, 0.0)  # standing after the touchdown, sliding on
+        elif t_ms < 2600:
             velocity = (1.0, 0.0, 0.2)  # going up
         elif t_ms < 3200:
             velocity = (1.0, 0.0, -0.2)  # past the apex

@@ -109,6 +109,8 @@ def configs(draw: st.DrawFn) -> GaitConfig:
         touchdown_debounce_s=draw(st.sampled_from((0, 10, 50, 80))) / 1000,
         liftoff_debounce_s=draw(st.sampled_from((0, 20, 150))) / 1000,
         landed_dwell_s=draw(st.sampled_from((0, 30, 200))) / 1000,
+        jump_settle_speed_m_s=draw(st.sampled_from((0.1, 10.0))),
+        jump_settle_angular_speed_rad_s=draw(st.sampled_from((0.05, 10.0))),
         attitude_reference=draw(st.sampled_from(ATTITUDE_REFERENCE_MODES)),
     )
 
@@ -325,6 +327,8 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
                 expected_hemi = jump.hemi
                 assert stance[names.HEMIS.index(jump.hemi)]
             assert out.pushing_hemi == expected_hemi
+            if prev is not None and prev.phase == GaitPhase.JUMP:  # after a touchdown: settled
+                assert settled(config, tick)
             thrusts.append((t, expected_hemi))
         elif (
             prev is not None
@@ -333,12 +337,14 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
             and not out.thrusting
             and len(thrusts) < len(plan)
             and t >= plan[len(thrusts)].time_ns
-        ):  # a due jump not started: its hemi is not in stance, and it says it waits
+        ):  # a due jump not started: its hemi is not in stance, or the robot has not
+            # settled after a touchdown; and it says it waits
             hemi = plan[len(thrusts)].hemi
             if hemi == "both":
-                assert not all(stance)
+                in_stance = all(stance)
             else:
-                assert not (any(stance) if hemi == "auto" else stance[names.HEMIS.index(hemi)])
+                in_stance = any(stance) if hemi == "auto" else stance[names.HEMIS.index(hemi)]
+            assert not in_stance or (prev.phase == GaitPhase.JUMP and not settled(config, tick))
             assert out.jump_waiting
         if out.jump_waiting:  # a due jump
             assert not out.thrusting and len(thrusts) < len(plan)
@@ -352,6 +358,14 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
             assert not out.jump_force_n.any() and not out.jump_torque_nm.any()
         assert 0 <= out.jumps_done <= len(thrusts) <= len(plan) == out.jumps_planned
         prev = out
+
+
+def settled(config: GaitConfig, tick: Tick) -> bool:
+    """The robot is settled enough for a jump after a touchdown (GaitConfig's thresholds)."""
+    return (
+        abs(tick.velocity_m_s[2]) < config.jump_settle_speed_m_s
+        and float(np.linalg.norm(tick.rate_rad_s)) < config.jump_settle_angular_speed_rad_s
+    )
 
 
 @SETTINGS

@@ -33,7 +33,13 @@ is an error. Each change is reported once, on its tick, with its reason
   comes first (the simulator also ends it when the legs leave their stroke).
   A due jump whose hemi is not in stance waits (:attr:`GaitOutput.jump_waiting`).
   A touchdown with a jump left is JUMP (paper: "one Hemi-SPLITTER makes contact
-  with the ground and jumps"): the robot stands until the jump is due.
+  with the ground and jumps"): the robot stands until the jump is due and it has
+  settled: the touchdown absorbed (the COM's vertical speed below
+  ``jump_settle_speed_m_s``) and the spin stopped by the feet's friction (``|w|``
+  below ``jump_settle_angular_speed_rad_s``); the forward speed is carried (a
+  running hop). A push from legs still in their landing stroke, or from a robot
+  still turning, would launch the next flight with the landing's speed and spin in
+  it.
 * Landing (paper: "towards Landing, SPLITTER de-thrusts the system, and the
   attitude controller slows down the angular velocity"): once every planned jump
   is done and the centre of mass descends, the phase is LANDING; the attitude
@@ -491,6 +497,20 @@ class GaitConfig:
     landed_dwell_s: float = parameter_field(
         1.0, "time at rest in stance before LANDED [s]", bounds=(0.0, 60.0), live=True
     )
+    jump_settle_speed_m_s: float = parameter_field(
+        0.1,
+        "a jump after a touchdown waits until the COM's vertical speed is below this: the "
+        "touchdown absorbed [m/s]",
+        bounds=(1e-4, 10.0),
+        live=True,
+    )
+    jump_settle_angular_speed_rad_s: float = parameter_field(
+        0.05,
+        "a jump after a touchdown waits until |w| is below this: the spin stopped by the "
+        "feet's friction [rad/s]",
+        bounds=(1e-4, 10.0),
+        live=True,
+    )
     w_ref_rad_s: tuple[float, float, float] = parameter_field(
         (0.0, 1.0, 0.0), "flight angular velocity reference, base frame [rad/s]", length=3
     )
@@ -525,6 +545,8 @@ class GaitConfig:
             "stance_force_threshold_n": self.stance_force_threshold_n,
             "landed_speed_m_s": self.landed_speed_m_s,
             "landed_angular_speed_rad_s": self.landed_angular_speed_rad_s,
+            "jump_settle_speed_m_s": self.jump_settle_speed_m_s,
+            "jump_settle_angular_speed_rad_s": self.jump_settle_angular_speed_rad_s,
         }
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):
@@ -630,7 +652,7 @@ class GaitOutput:
     jumps_done: int = 0  # thrusts completed
     jumps_planned: int = 0
     time_in_phase_ns: int = 0  # [ns]
-    jump_waiting: bool = False  # a jump is due but its hemi is not in stance
+    jump_waiting: bool = False  # a jump is due but its hemi is not in stance or not settled
     on_ground: bool = False  # debounced ground contact (touchdown / lift-off events)
     reason: str = ""  # why the phase changed, on the tick it changed
     touchdown_in_s: float = math.inf  # [s] predicted time to the next touchdown (inf: none)
@@ -759,7 +781,11 @@ class GaitPhaseMachine:
             jump = cfg.jumps[self._next_jump]
             if t_ns >= jump.time_ns:
                 hemi = _pushing_hemi(jump.hemi, stance)
-                if hemi is None:
+                settled = self._phase != GaitPhase.JUMP or (
+                    abs(float(velocity[2])) < cfg.jump_settle_speed_m_s
+                    and float(np.linalg.norm(rate)) < cfg.jump_settle_angular_speed_rad_s
+                )
+                if hemi is None or not settled:
                     jump_waiting = True
                 else:
                     _LOG.debug(
