@@ -21,7 +21,12 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from splitter_model.model import RobotModel
-from splitter_sim.core.legs import LegImpedance, leg_compression_m, leg_stance_force
+from splitter_sim.core.legs import (
+    LegImpedance,
+    leg_compression_m,
+    leg_stance_force,
+    roll_load_share,
+)
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODEL = RobotModel()
@@ -144,3 +149,65 @@ def test_the_cone_must_be_an_angle_between_0_and_90_deg(angle: float) -> None:
         LegImpedance(40.0, 200.0, 20.0, 0.8, 190.0, angle)
     with pytest.raises(ValueError, match="leg_cone_half_angle_deg"):
         SimConfig(leg_cone_half_angle_deg=angle)
+
+
+# --- posture about the tether axis ----------------------------------------------------------
+def _roll_deg(state) -> float:
+    """Roll of the body about the tether axis [deg]: the tilt of body +y out of level."""
+    q = state.orientation_wxyz
+    body_y_world = Rotation.from_quat([q[1], q[2], q[3], q[0]]).apply([0.0, 1.0, 0.0])
+    return math.degrees(math.asin(max(-1.0, min(1.0, body_y_world[2]))))
+
+
+def _standing(config: SimConfig, seconds: float, rate_rad_s=(0.6, 0.0, 0.3)) -> list:
+    """A lunar robot standing crouched on its legs, kicked into a roll and a yaw spin."""
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=(0.0, 0.0, 0.215), angular_velocity_rad_s=rate_rad_s),
+    )
+    states = []
+    for _ in range(int(seconds / DT)):
+        sim.step()
+        states.append(sim.state())
+    return states
+
+
+def test_standing_legs_level_the_body_about_the_tether_axis() -> None:
+    """The feet spread under the y limbs hold the roll a spinning, sliding robot gets."""
+    states = _standing(SimConfig(gravity_m_s2=1.62, compliant_legs=True), 3.0)
+    rolls = np.array([_roll_deg(s) for s in states])
+    assert float(np.abs(rolls).max()) < 10.0
+    assert abs(rolls[-1]) < 1.0
+    assert min(float(s.mass_positions_world_m[:, 2].min()) for s in states) > 0.0
+    # the moment comes from the load moved between the feet: the legs still carry the weight
+    weight = 2 * MODEL.hemi_mass_kg * 1.62
+    assert float(states[-1].leg_force_n[:, 2].sum()) == pytest.approx(weight, rel=0.05)
+
+
+def test_without_the_feet_spread_a_standing_robot_rolls_onto_its_limbs() -> None:
+    """The same kick with the levelling moment off: the two-point stance rolls over."""
+    config = SimConfig(
+        gravity_m_s2=1.62,
+        compliant_legs=True,
+        leg_roll_stiffness_nm_rad=0.0,
+        leg_roll_damping_nm_s_rad=0.0,
+    )
+    states = _standing(config, 3.0)
+    assert max(abs(_roll_deg(s)) for s in states) > 20.0
+
+
+def test_roll_load_share_levels_within_the_support_polygon() -> None:
+    legs = SimConfig().legs
+    # rolled +y side up: load moves to the right feet (u < 0), a moment towards level
+    assert roll_load_share(math.sin(0.05), 0.0, 30.0, 0.2, legs) < 0.0
+    assert roll_load_share(-math.sin(0.05), 0.0, 30.0, 0.2, legs) > 0.0
+    assert roll_load_share(0.0, 1.0, 30.0, 0.2, legs) < 0.0  # damping
+    u = roll_load_share(math.sin(0.05), 0.0, 30.0, 0.2, legs)
+    moment = 2.0 * u * 0.2 * 30.0
+    assert moment == pytest.approx(-legs.roll_stiffness_nm_rad * math.sin(0.05))
+    # at most the whole load on one side; nothing without load or lever
+    assert roll_load_share(1.0, 0.0, 1.0, 0.2, legs) == -0.5
+    assert roll_load_share(-1.0, 0.0, 1.0, 0.2, legs) == 0.5
+    assert roll_load_share(0.5, 0.0, 0.0, 0.2, legs) == 0.0
+    assert roll_load_share(0.5, 0.0, 10.0, 0.0, legs) == 0.0

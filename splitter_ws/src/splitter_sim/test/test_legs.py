@@ -18,6 +18,8 @@ LEGS = LegImpedance(
     tangential_damping_n_s_m=20.0,
     friction_coefficient=0.8,
     force_max_n=190.0,
+    roll_stiffness_nm_rad=24.0,
+    roll_damping_nm_s_rad=4.8,
 )
 SPEED = st.floats(-20.0, 20.0)  # [m/s] a velocity component
 VELOCITY = st.tuples(SPEED, SPEED, SPEED)

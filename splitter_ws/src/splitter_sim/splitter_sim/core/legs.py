@@ -34,6 +34,15 @@ within the cone, the compression is measured along the leg axis and the law abov
 acts along it; the ground then takes the force only within its friction cone (the
 feet slip beyond: the force's part along the ground is cut to ``mu`` times its
 part along the normal).
+
+Posture about the tether axis. The two hemis stand on the tether axis, so forces at
+the hemi bodies alone would leave the robot free to roll about it (measured: a robot
+standing after a spinning touchdown rolled over in 1.5 s, its y limb tips caught by
+the ground while it slid). A hemi's four feet spread sideways under its y limbs, a
+lever ``b`` (the y limb's reach) either side: the legs level the body by shifting
+load between the left and right feet (:func:`roll_load_share`), a moment
+``-k_roll sin(roll) - c_roll w_x`` about body x, at most the whole load on one side
+(``b`` times the load: the edge of the support polygon, where a real robot tips).
 """
 
 from __future__ import annotations
@@ -52,6 +61,8 @@ class LegImpedance:
     friction_coefficient: float  # mu [-] of the feet on the ground
     force_max_n: float  # [N] largest norm of the stance force
     cone_half_angle_deg: float = 60.0  # [deg] workspace: belly normal to ground normal
+    roll_stiffness_nm_rad: float = 0.0  # [N m/rad] levelling moment about the tether axis
+    roll_damping_nm_s_rad: float = 0.0  # [N m s/rad]
 
     def __post_init__(self) -> None:
         for name in (
@@ -59,6 +70,8 @@ class LegImpedance:
             "damping_n_s_m",
             "tangential_damping_n_s_m",
             "friction_coefficient",
+            "roll_stiffness_nm_rad",
+            "roll_damping_nm_s_rad",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -158,3 +171,25 @@ def _level_stance_force(
     )
     scale = -tangential / speed_t
     return scale * vx, scale * vy, normal
+
+
+def roll_load_share(
+    roll_sine: float,
+    roll_rate_rad_s: float,
+    load_n: float,
+    lever_m: float,
+    legs: LegImpedance,
+) -> float:
+    """Share ``u`` in [-1/2, 1/2] of a hemi's leg load moved from its right to its left feet.
+
+    The left feet (body ``+y``, ``lever_m`` out) then carry ``(1/2 + u)`` of the load
+    ``load_n`` [N] along the leg axis, the right feet ``(1/2 - u)``: a moment
+    ``2 u lever load`` about body ``+x``, the levelling moment ``-k_roll roll_sine -
+    c_roll roll_rate`` as far as the support polygon allows (module docstring).
+    ``roll_sine`` is the world ``z`` of body ``+y`` (sine of the roll about the
+    tether), ``roll_rate_rad_s`` the body rate about ``x``.
+    """
+    if load_n <= 0.0 or lever_m <= 0.0:
+        return 0.0
+    moment = -legs.roll_stiffness_nm_rad * roll_sine - legs.roll_damping_nm_s_rad * roll_rate_rad_s
+    return min(max(moment / (2.0 * lever_m * load_n), -0.5), 0.5)

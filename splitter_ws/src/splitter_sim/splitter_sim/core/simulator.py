@@ -52,6 +52,7 @@ from splitter_sim.core.legs import (
     leg_compression_m,
     leg_stance_force,
     legs_face_ground,
+    roll_load_share,
 )
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
@@ -63,6 +64,8 @@ from splitter_sim.core.rigid_body import (
 from splitter_sim.core.shape import HEMI_OF_MASS, Shape, ShapeKinematics
 
 HEMI_BODY_INDEX = (0, 5)  # mass index of each hemi body (a, b)
+# mass indices of each hemi's y limbs (y_pos, y_neg): its feet spread sideways under them
+HEMI_FOOT_INDEX = ((1, 2), (6, 7))
 HEMI_LABELS = ("a", "b")
 ALL_MASSES = tuple(range(10))
 
@@ -102,6 +105,8 @@ _NON_NEGATIVE = (
     "leg_stiffness_n_m",
     "leg_damping_n_s_m",
     "leg_tangential_damping_n_s_m",
+    "leg_roll_stiffness_nm_rad",
+    "leg_roll_damping_nm_s_rad",
     "command_extrapolation_s",
     "knot_blend_s",
 )
@@ -177,6 +182,19 @@ class SimConfig:
     leg_force_max_n: float = parameter_field(
         190.0, "largest stance force of a hemi's legs (the limbs' limit) [N]", bounds=(1e-3, 1e5)
     )
+    # splitter_sim.core.legs ("posture"): two hemis stand on two points of the tether axis,
+    # which alone would leave the robot free to roll about it; the feet spread sideways
+    # under the y limbs give the legs a roll moment. Per hemi, with the robot's I_xx of
+    # 0.48 kg m^2 at the stance shape: 10 rad/s, critically damped.
+    leg_roll_stiffness_nm_rad: float = parameter_field(
+        24.0,
+        "a hemi's legs level its body about the tether axis with this moment per radian of "
+        "roll, shifting load between the left and right feet [N m/rad]",
+        bounds=_GAIN_RANGE,
+    )
+    leg_roll_damping_nm_s_rad: float = parameter_field(
+        4.8, "roll damping of a hemi's legs in stance [N m s/rad]", bounds=_GAIN_RANGE
+    )
     # splitter_sim.core.legs: a 0.4 m leg clears a 0.2 m half-wide body up to 90 - 30 deg.
     leg_cone_half_angle_deg: float = parameter_field(
         60.0,
@@ -232,6 +250,8 @@ class SimConfig:
             friction_coefficient=self.friction_coefficient,
             force_max_n=self.leg_force_max_n,
             cone_half_angle_deg=self.leg_cone_half_angle_deg,
+            roll_stiffness_nm_rad=self.leg_roll_stiffness_nm_rad,
+            roll_damping_nm_s_rad=self.leg_roll_damping_nm_s_rad,
         )
 
     @property
@@ -629,7 +649,8 @@ class Simulator:
         """The jump thrust on each pushing hemi body (world [N]).
 
         A hemi pushes while its lowest mass is within the stroke of the ground and its
-        legs face the ground (their workspace cone, :mod:`.legs`).
+        legs face the ground (their workspace cone, :mod:`.legs`), with compliant legs
+        at most their force limit ``leg_force_max_n`` (a push asked beyond it is cut).
         """
         fx, fy, fz = self._jump_force
         per_hemi = self._jump_per_hemi
@@ -640,7 +661,7 @@ class Simulator:
         reach = [facing and low[h] <= stroke for h in range(2)]
         if per_hemi is not None:
             return tuple(
-                (HEMI_BODY_INDEX[h], *per_hemi[h])
+                (HEMI_BODY_INDEX[h], *self._within_leg_limit(per_hemi[h]))
                 for h in range(2)
                 if reach[h] and any(per_hemi[h])
             )
@@ -654,7 +675,21 @@ class Simulator:
         # "auto": each hemi's legs push half; one that leaves its stroke takes its half
         # away (legs cannot hand their force to the other hemi's legs).
         share = 0.5 if self._jump_hemi == "auto" else 1.0
-        return tuple((HEMI_BODY_INDEX[h], fx * share, fy * share, fz * share) for h in pushing)
+        force = self._within_leg_limit((fx * share, fy * share, fz * share))
+        return tuple((HEMI_BODY_INDEX[h], *force) for h in pushing)
+
+    def _within_leg_limit(
+        self, force: tuple[float, float, float] | Sequence[float]
+    ) -> tuple[float, float, float]:
+        """A hemi's push [N], cut to the legs' force limit when the legs are modelled."""
+        fx, fy, fz = (float(v) for v in force)
+        if not self.config.compliant_legs:
+            return fx, fy, fz
+        norm = math.sqrt(fx * fx + fy * fy + fz * fz)
+        cap = self.config.leg_force_max_n
+        if norm <= cap:
+            return fx, fy, fz
+        return fx * cap / norm, fy * cap / norm, fz * cap / norm
 
     def _leg_terms(
         self,
@@ -663,11 +698,13 @@ class Simulator:
         s: list[float],
         shape: Shape,
     ) -> tuple[tuple[int, float, float, float], ...]:
-        """Stance forces of the compliant legs (world, on each hemi body) for this step.
+        """Stance forces of the compliant legs (world, on each hemi's y limbs) for this step.
 
         A hemi's legs act while its feet, a stroke along the leg axis from its lowest
         mass, reach the ground, its belly faces the ground (:func:`.legs.legs_face_ground`)
-        and it is not pushing a jump (the thrust is then the legs' force).
+        and it is not pushing a jump (the thrust is then the legs' force). The force is
+        shared between the hemi's left and right feet, under its y limbs, so that the
+        legs level the body about the tether axis (:func:`.legs.roll_load_share`).
         """
         if not self.config.compliant_legs:
             return ()
@@ -693,8 +730,14 @@ class Simulator:
                 s[5] + r20 * ux + r21 * uy + r22 * uz,
             )
             fx, fy, fz = leg_stance_force(compression, velocity, self._legs, (r02, r12, r22))
-            if fz > 0.0:
-                terms.append((body, fx, fy, fz))
+            if fz <= 0.0:
+                continue
+            left, right = HEMI_FOOT_INDEX[h]
+            share = roll_load_share(
+                r21, wx, fx * r02 + fy * r12 + fz * r22, shape.ry[left] - y, self._legs
+            )
+            terms.append((left, (0.5 + share) * fx, (0.5 + share) * fy, (0.5 + share) * fz))
+            terms.append((right, (0.5 - share) * fx, (0.5 - share) * fy, (0.5 - share) * fz))
         return tuple(terms)
 
     def _contact_candidates(
