@@ -230,6 +230,7 @@ class MorphingController(Closable):
         )
         self._last_setpoint: NDArray[np.float64] | None = None
         self._stance_limbs_m: NDArray[np.float64] | None = None  # [m] r_y, r_z of the legs
+        self._stance_radius_x_m: float | None = None  # [m] the tether held in stance shape
         self._recovering = False
         self._failures_to_inject = 0
         self._status = ControllerStatus(solver=self.mpc.settings.solver)
@@ -305,9 +306,10 @@ class MorphingController(Closable):
 
         ``phase`` is the gait phase name (None: unknown, treated as active).
         ``stance_shape``: the limbs are legs (on the ground, or the touchdown the gait
-        predicts is within its lead): in the air the controller hands the limbs back
-        in their nominal shape and keeps the tether as it is (:meth:`_stance_setpoint`),
-        so the robot meets the ground on its legs with the spin it slowed.
+        predicts is within its lead): the controller hands the limbs back in their
+        nominal shape and holds the tether as it is (:meth:`_stance_setpoint`), so the
+        robot meets the ground on its legs with the spin it slowed, and stands and
+        pushes its next jump in that shape.
         Raises ``ValueError`` for non-finite or malformed inputs (state unchanged).
         """
         t_ns = int(t_ns)
@@ -341,11 +343,12 @@ class MorphingController(Closable):
             airborne = phase is None or phase not in INACTIVE_PHASES
             if landed and self._last_setpoint is not None:
                 setpoint = self._last_setpoint.copy()  # landed: keep the shape it landed in
-            elif self.config.enabled and stance_shape and airborne:
+            elif self.config.enabled and (stance_shape or not airborne):
                 setpoint = self._stance_setpoint(inertia)
             else:
                 setpoint = self._nominal.copy()
         else:
+            self._stance_radius_x_m = None
             if self._plan is None or t_ns % self.config.replan_period_ns == 0:
                 self._update_recovery(w, inertia)
                 status.update(self._replan(t_ns, np.concatenate([w, q, inertia])))
@@ -373,12 +376,18 @@ class MorphingController(Closable):
         return setpoint
 
     def _stance_setpoint(self, inertia: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The nominal limbs with the measured tether [kg m^2].
+        """The nominal limbs with the tether held where it was measured [kg m^2].
 
-        In the allocator's terms, which turn the setpoint into joints: radii from the
-        moments with the controller's nominal masses (the paper's closed form), ``r_x``
-        measured now and clipped to the tether's range, ``r_y`` and ``r_z`` of the
-        nominal shape (the first measured inertia: the legs' stance), back to moments.
+        Used from the hand-back before a touchdown, on the ground, and until the MPC
+        flies again. In the allocator's terms, which turn the setpoint into joints: radii
+        from the moments with the controller's nominal masses (the paper's closed form),
+        ``r_x`` measured on the first tick in stance shape, clipped to the tether's
+        range, and held (a tether reeled back to its nominal length on the ground kept
+        its reel-in speed after lift-off, which a slow spin cannot brake: the hemis
+        coasted inwards and spun the robot up from 0.05 to 0.38 rad/s for the next
+        landing; a setpoint that followed the measured length kept a moving reel
+        moving), ``r_y`` and ``r_z`` of the nominal shape (the first measured inertia:
+        the legs' stance), back to moments.
         (With the MPC's estimated masses instead, a tether near its end asked the
         allocator for more than 3.0 m, and its projection kept the limbs out.) A
         measurement the closed form refuses gives the nominal inertia.
@@ -389,12 +398,14 @@ class MorphingController(Closable):
         try:
             if self._stance_limbs_m is None:
                 self._stance_limbs_m = radii_from_inertia(model, nominal)[1:]
-            radius_x = float(radii_from_inertia(model, inertia)[0])
+            if self._stance_radius_x_m is None:
+                radius_x = float(radii_from_inertia(model, inertia)[0])
+                radius_x = min(max(radius_x, model.radius_x_min_m), model.radius_x_max_m)
+                self._stance_radius_x_m = radius_x
         except InfeasibleInertiaError as exc:
             _LOG.warning("stance shape from the nominal inertia: %s", exc)
             return nominal.copy()
-        radius_x = min(max(radius_x, model.radius_x_min_m), model.radius_x_max_m)
-        return principal_inertia(model, (radius_x, *self._stance_limbs_m))
+        return principal_inertia(model, (self._stance_radius_x_m, *self._stance_limbs_m))
 
     def _update_recovery(self, w: NDArray[np.float64], inertia: NDArray[np.float64]) -> None:
         """Enter or leave recovery from the body rate across the reference axis."""

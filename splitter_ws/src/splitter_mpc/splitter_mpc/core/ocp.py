@@ -26,7 +26,11 @@ Hardware limits as bounds:
 * tether tension ``(w_y^2 + w_z^2) + sigma >= T_min / (m_x rhat_x,k)`` for k >= 1,
   i.e. ``T = m_x r_x (w_y^2 + w_z^2) >= T_min`` (the paper's ``m_x w_y^2 r_x`` with
   the z spin of :func:`splitter_model.model.tether_tension_3d`), soft with the
-  slack ``sigma >= 0`` under an exact L1 penalty (zero whenever it can be met).
+  slack ``sigma >= 0`` under an exact L1 penalty (zero whenever it can be met). A
+  measured spin too slow for ``T_min`` asks only for the ``w_y^2 + w_z^2`` it has:
+  the margin would otherwise make the MPC reel in and spin a slowly turning robot
+  up (measured in lunar_jumping's second flight, launched at 0.05 rad/s: spun up to
+  0.38 rad/s for the landing).
 
 Discrete dynamics (paper eq. 13-16) with the *physically correct* gyroscopic
 sign. The paper writes ``I_{k+1} w_{k+1} = I_k w_k + dt (w_k x I_k w_k)``; Euler's
@@ -512,7 +516,12 @@ class MorphingOcp:
         r_low = np.maximum(lim.radius_min_m[0], r_x - lim.radius_rate_max_m_s[0] * k * self.dt_s)
         lo = np.zeros((n, nx + NG_PATH))
         hi = np.zeros((n, nx + NG_PATH))
-        lo[:, nx] = lim.tension_min_n / (lim.body_mass_kg * r_low)
+        # A spin too slow for the margin keeps what it has: the tether's tension is its
+        # centripetal load, so asking for more would make the MPC reel in and spin the
+        # robot up (the allocator, likewise, only lets a slow spin reel in).
+        w0 = np.asarray(x_init, dtype=float)[0:3]
+        w_perp0_sq = float(w0[1] ** 2 + w0[2] ** 2)
+        lo[:, nx] = np.minimum(lim.tension_min_n / (lim.body_mass_kg * r_low), w_perp0_sq)
         lo[0, nx] = -np.inf  # x_0 is measured: its tension is what it is
         hi[:, nx] = np.inf
         return lo.ravel(), hi.ravel()
