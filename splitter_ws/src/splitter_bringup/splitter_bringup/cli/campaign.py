@@ -61,6 +61,7 @@ from splitter_bringup.analysis.campaign import (
     summarize,
     write_csv,
 )
+from splitter_bringup.analysis.jump_campaign import JumpRanges
 from splitter_bringup.run.campaign import fly_draw, run_on_dask
 from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
 
@@ -107,7 +108,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         nargs="?",
         const=DEFAULT_MASS_FRACTION,
-        default=0.0,
+        default=None,
         metavar="FRACTION",
         help="scale the simulated m_x, m_y, m_z (so the inertia) each within 1 +- FRACTION; "
         "the controllers know the nominal model and estimate the masses (flag alone: "
@@ -118,7 +119,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         nargs="?",
         const=DEFAULT_GYRO_NOISE_RAD_S,
-        default=0.0,
+        default=None,
         metavar="SIGMA",
         help="white noise on the gyro's rate (/splitter/imu), std per axis and "
         f"reading [rad/s] (flag alone: {DEFAULT_GYRO_NOISE_RAD_S})",
@@ -128,7 +129,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         nargs="?",
         const=DEFAULT_GYRO_BIAS_RAD_S,
-        default=0.0,
+        default=None,
         metavar="BIAS",
         help="constant gyro bias, uniform in +-BIAS per axis [rad/s] "
         f"(flag alone: {DEFAULT_GYRO_BIAS_RAD_S})",
@@ -148,7 +149,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         nargs="?",
         const=DEFAULT_COMMAND_LATENCY_S,
-        default=0.0,
+        default=None,
         metavar="DELAY",
         help="delay of every joint and tether command to the servos [s] "
         f"(flag alone: {DEFAULT_COMMAND_LATENCY_S})",
@@ -179,6 +180,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "they are and ignore the lag (default: they fly on the flight estimator of gyro "
         "bias and masses and take setpoints the lag ahead)",
     )
+    jumping = parser.add_argument_group(
+        "jumping scenarios (a scenario with jumps: both variants fly every draw; the robot "
+        "errors above, when given, set the width of their ranges instead)"
+    )
+    jumping.add_argument(
+        "--push-fraction",
+        type=float,
+        default=JumpRanges.push_fraction,
+        metavar="F",
+        help=f"each hemi's push magnitude within 1 +- F (default {JumpRanges.push_fraction})",
+    )
+    jumping.add_argument(
+        "--push-tilt",
+        type=float,
+        default=JumpRanges.push_tilt_deg,
+        metavar="DEG",
+        help=f"each hemi's push direction within DEG (default {JumpRanges.push_tilt_deg})",
+    )
+    jumping.add_argument(
+        "--spin-fraction",
+        type=float,
+        default=JumpRanges.spin_fraction,
+        metavar="F",
+        help=f"the launch's couple within 1 +- F (default {JumpRanges.spin_fraction})",
+    )
     parser.add_argument(
         "--replay",
         type=int,
@@ -195,13 +221,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 
 
+def _given(value: float | None) -> float:
+    """A perturbation flag's value, 0 when it was not given."""
+    return 0.0 if value is None else value
+
+
 def _spec(args: argparse.Namespace) -> PerturbationSpec:
     return PerturbationSpec(
-        mass_fraction=args.perturb_mass,
-        gyro_noise_rad_s=args.imu_noise,
-        gyro_bias_rad_s=args.imu_bias,
+        mass_fraction=_given(args.perturb_mass),
+        gyro_noise_rad_s=_given(args.imu_noise),
+        gyro_bias_rad_s=_given(args.imu_bias),
         actuator_lag_s=args.actuator_lag,
-        command_latency_s=args.command_latency,
+        command_latency_s=_given(args.command_latency),
         hemi_body_edge_m=args.hemi_bodies,
         joint_effort_noise=args.effort_noise,
         estimator=not args.no_estimator,
@@ -225,11 +256,11 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
         words += ["--duration", repr(args.duration)]
     words += ["--w-min", repr(args.w_min), "--w-max", repr(args.w_max)]
     for flag, value in (
-        ("--perturb-mass", args.perturb_mass),
-        ("--imu-noise", args.imu_noise),
-        ("--imu-bias", args.imu_bias),
+        ("--perturb-mass", _given(args.perturb_mass)),
+        ("--imu-noise", _given(args.imu_noise)),
+        ("--imu-bias", _given(args.imu_bias)),
         ("--actuator-lag", args.actuator_lag),
-        ("--command-latency", args.command_latency),
+        ("--command-latency", _given(args.command_latency)),
         ("--hemi-bodies", args.hemi_bodies),
     ):
         if value > 0.0:
@@ -275,6 +306,10 @@ def _print_summary(summary: dict[str, Any], title: str) -> None:
 def main(args: argparse.Namespace) -> int:
     """Draw, fly on Dask, classify, summarise, plot; 0 when it ran, 2 on bad input."""
     try:
+        if load_scenario(args.scenario).jumps:
+            from splitter_bringup.cli import jump_campaign
+
+            return jump_campaign.main(args)
         variant = _variant(args.scenario, args.variant)
         base = load_scenario(args.scenario, variant)
         spec = _spec(args)

@@ -12,9 +12,9 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, TypeVar
 
 from splitter_bringup.analysis.campaign import (
     Draw,
@@ -30,6 +30,7 @@ from splitter_bringup.run.backends import LIBRARY, run
 from splitter_bringup.scenario.definition import Scenario
 
 _LOG = logging.getLogger(__name__)
+R = TypeVar("R")
 _PROGRESS_LOG = logging.getLogger("splitter.campaign")
 PROGRESS_STEP = 0.05  # a progress line per 5 % of the draws
 # environment variables a worker takes from the process that starts the campaign
@@ -123,7 +124,7 @@ class _Progress:
         self.started = time.monotonic()
         self._next = PROGRESS_STEP
 
-    def __call__(self, result: DrawResult) -> None:
+    def __call__(self, result: Any) -> None:
         self.done += 1
         self.successes += int(result.success)
         fraction = self.done / max(1, self.total)
@@ -151,12 +152,36 @@ def run_on_dask(
     scheduler: str | None = None,
 ) -> tuple[list[DrawResult], dict[str, Any]]:
     """Every draw as a Dask task; (results in draw order, a description of the cluster)."""
+    tasks = [(f"draw-{draw.index}-{draw.seed}", (scenario, draw, spec)) for scenario, draw in jobs]
+    draws = [draw for _, draw in jobs]
+
+    def failed(k: int, exc: Exception) -> DrawResult:
+        return error_result(draws[k], f"Dask task failed: {exc!r}")
+
+    return map_on_dask(run_draw, tasks, failed, workers, scheduler)
+
+
+def map_on_dask(
+    function: Callable[..., R],
+    tasks: Sequence[tuple[str, tuple]],
+    failed: Callable[[int, Exception], R],
+    workers: int | None = None,
+    scheduler: str | None = None,
+) -> tuple[list[R], dict[str, Any]]:
+    """``function(*args)`` of every task ``(key, args)`` as a Dask task, with progress lines.
+
+    An embedded ``LocalCluster`` on 127.0.0.1 (``workers`` processes of one thread,
+    all cores by default, no dashboard) or the cluster at ``scheduler``. A task whose
+    worker died gives ``failed(index, exception)``. The results have a ``success``
+    attribute (counted in the progress lines). Returns (results in task order, a
+    description of the cluster).
+    """
     from distributed import Client, LocalCluster, as_completed
 
-    progress = _Progress(len(jobs))
+    progress = _Progress(len(tasks))
     # the scheduler's and the workers' chatter (INFO) would drown the progress lines
     logging.getLogger("distributed").setLevel(logging.WARNING)
-    results: dict[int, DrawResult] = {}
+    results: dict[int, R] = {}
     plugin = _worker_plugin_class()(_forwarded_environment())
     cluster = None
     if scheduler is None:
@@ -182,27 +207,25 @@ def run_on_dask(
         }
         _PROGRESS_LOG.info(
             "%d draws on %d Dask workers (scheduler %s)",
-            len(jobs),
+            len(tasks),
             info["workers"],
             info["scheduler"],
         )
-        futures, draw_of = [], {}
-        for scenario, draw in jobs:
-            future = client.submit(
-                run_draw, scenario, draw, spec, key=f"draw-{draw.index}-{draw.seed}", pure=False
-            )
+        futures, index_of = [], {}
+        for k, (key, args) in enumerate(tasks):
+            future = client.submit(function, *args, key=key, pure=False)
             futures.append(future)
-            draw_of[future.key] = draw
+            index_of[future.key] = k
         for future in as_completed(futures):
-            draw = draw_of[future.key]
+            k = index_of[future.key]
             try:
                 result = future.result()
             except Exception as exc:  # the task's worker died: the draw is an error
-                result = error_result(draw, f"Dask task failed: {exc!r}")
-            results[draw.index] = result
+                result = failed(k, exc)
+            results[k] = result
             progress(result)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-    return [results[d.index] for _, d in jobs], info
+    return [results[k] for k in range(len(tasks))], info
