@@ -80,3 +80,23 @@ def test_a_misspelt_field_is_an_error_not_a_default(tmp_path: Path, text: str, f
     path.write_text(text)
     with pytest.raises(ScenarioError, match=f"{field}: unknown field"):
         load_scenario(path)
+
+
+@pytest.mark.parametrize("cone", ["90", "0.5", "nan", "wide"])
+def test_a_legs_cone_out_of_range_names_its_field(tmp_path: Path, cone: str) -> None:
+    path = tmp_path / "cone.yaml"
+    path.write_text(f"name: c\nduration_s: 1.0\nleg_cone_half_angle_deg: {cone}\n")
+    with pytest.raises(ScenarioError, match="leg_cone_half_angle_deg"):
+        load_scenario(path)
+
+
+def test_the_legs_cone_reaches_the_simulator_in_both_backends(tmp_path: Path) -> None:
+    from splitter_bringup.scenario.graph_config import simulator_parameters
+    from splitter_bringup.scenario.simulation import sim_config
+
+    path = tmp_path / "cone.yaml"
+    path.write_text("name: c\nduration_s: 1.0\ncompliant_legs: true\nleg_cone_half_angle_deg: 45\n")
+    scenario = load_scenario(path)
+    assert sim_config(scenario).leg_cone_half_angle_deg == 45.0
+    assert simulator_parameters(scenario, False, 1.0)["leg_cone_half_angle_deg"] == 45.0
+    assert load_scenario("lunar_jumping").leg_cone_half_angle_deg == 60.0

@@ -16,7 +16,6 @@ from splitter_bringup.analysis.touchdowns import touchdown_summary
 from splitter_bringup.scenario.definition import Scenario
 from splitter_model.model import RobotModel
 from splitter_sim.core.robot_errors import RobotErrors
-from splitter_sim.core.simulator import SimConfig
 
 LAST_TICK_S = 0.01 - 1e-9  # [s] one control period before the end (the last commanded)
 
@@ -33,7 +32,7 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
         metrics = {
             **jumping_summary(series, scenario.jumps, scenario.paper),
             **gait_summary(series, len(scenario.jumps)),
-            **touchdown_summary(series, SimConfig().leg_cone_half_angle_deg, plant_model(scenario)),
+            **touchdown_summary(series, scenario.leg_cone_half_angle_deg, plant_model(scenario)),
             **metrics,
         }
         metrics.pop("max_horizontal_speed_m_s", None)

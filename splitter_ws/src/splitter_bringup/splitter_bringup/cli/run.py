@@ -219,14 +219,13 @@ def main(args: argparse.Namespace) -> int:
                 from splitter_bringup.analysis.summary import plant_model
                 from splitter_bringup.analysis.touchdowns import touchdowns
                 from splitter_bringup.figures.plots import plot_gait
-                from splitter_sim.core.simulator import SimConfig
 
                 plot_gait(
                     series,
                     out / f"{variant}_gait.png",
                     f"{base.name}: {variant}, gait phases",
                     limb_dynamic_force_limit_n(),
-                    touchdowns(series, SimConfig().leg_cone_half_angle_deg, plant_model(scenario)),
+                    touchdowns(series, scenario.leg_cone_half_angle_deg, plant_model(scenario)),
                 )
         if not args.no_animation:
             _animate(series, out, variant, f"{base.name}: {variant}")

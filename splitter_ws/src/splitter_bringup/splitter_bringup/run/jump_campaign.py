@@ -23,7 +23,6 @@ from splitter_bringup.analysis.jump_campaign import (
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.backends import LIBRARY, run
 from splitter_bringup.scenario.definition import Scenario
-from splitter_sim.core.simulator import SimConfig
 
 _LOG = logging.getLogger(__name__)
 
@@ -38,12 +37,13 @@ def run_jump_draw(variants: Mapping[str, Scenario], draw: JumpDraw) -> JumpDrawR
     """Fly the draw with every variant and judge each flight; never raises (an exception
     is that variant's ``error`` outcome)."""
     started = time.monotonic()
-    cone_deg = SimConfig().leg_cone_half_angle_deg
     outcomes: dict[str, LandingOutcome] = {}
     for name, base in variants.items():
         try:
             series = fly_jump_draw(base, draw)
-            outcomes[name] = classify_landing(series, scenario_for_jump_draw(base, draw), cone_deg)
+            outcomes[name] = classify_landing(
+                series, scenario_for_jump_draw(base, draw), base.leg_cone_half_angle_deg
+            )
         except Exception as exc:  # a failing flight is a result, not a crash of the campaign
             _LOG.warning("draw %d (seed %d), %s raised: %s", draw.index, draw.seed, name, exc)
             outcomes[name] = error_outcome(repr(exc))

@@ -34,6 +34,7 @@ from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
 from splitter_msgs_py.core.parameter_fields import parameter_fields
 from splitter_sim.core.robot_errors import RobotErrors
+from splitter_sim.core.simulator import SimConfig
 
 
 class ScenarioError(ValueError):
@@ -137,6 +138,8 @@ class Scenario:
     jumps: tuple[JumpSpec, ...]
     ground_contact: bool
     compliant_legs: bool = False  # stance legs under impedance control (splitter_sim.core.legs)
+    # [deg] the legs' workspace cone: belly normal to ground normal (SimConfig's field)
+    leg_cone_half_angle_deg: float = 60.0
     # how the simulated robot differs from the nominal one its controllers assume
     # (masses, gyro noise and bias, actuator lag); default: not at all
     robot_errors: RobotErrors = field(default_factory=RobotErrors)
@@ -320,6 +323,14 @@ def _jumps(data: Any) -> tuple[JumpSpec, ...]:
     return tuple(out)
 
 
+def _leg_cone(data: Mapping[str, Any]) -> float:
+    """``leg_cone_half_angle_deg`` [deg] in [1, 89] (SimConfig's range), default 60."""
+    cone = _positive(data, "leg_cone_half_angle_deg", SimConfig.leg_cone_half_angle_deg)
+    if not 1.0 <= cone <= 89.0:
+        raise ScenarioError(f"leg_cone_half_angle_deg: must be in [1, 89] deg, got {cone!r}")
+    return cone
+
+
 def _finite(data: Mapping[str, Any], key: str, default: float) -> float:
     value = data.get(key, default)
     try:
@@ -362,6 +373,7 @@ SCENARIO_FIELDS = (
     "sim_dt_s",
     "ground_contact",
     "compliant_legs",
+    "leg_cone_half_angle_deg",
     "initial",
     "controller",
     "jumps",
@@ -464,6 +476,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         jumps=tuple(jumps),
         ground_contact=bool(d.get("ground_contact", False)),
         compliant_legs=bool(d.get("compliant_legs", False)),
+        leg_cone_half_angle_deg=_leg_cone(d),
         robot_errors=_robot_errors(d.get("robot_errors")),
         estimator=_estimator(d.get("estimator")),
         paper=dict(d.get("paper", {}) or {}),

@@ -111,6 +111,7 @@ def simulator_parameters(
         "gravity": str(scenario.gravity_m_s2),
         "ground_contact": bool(scenario.ground_contact),
         "compliant_legs": bool(scenario.compliant_legs),
+        "leg_cone_half_angle_deg": float(scenario.leg_cone_half_angle_deg),
         "initial_position_m": _floats(scenario.initial_position_m),
         "initial_velocity_m_s": _floats(scenario.initial_velocity_m_s),
         "initial_orientation_euler_deg": _floats(scenario.initial_orientation_euler_deg),

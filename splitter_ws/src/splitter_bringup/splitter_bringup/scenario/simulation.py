@@ -44,6 +44,7 @@ def sim_config(scenario: Scenario) -> SimConfig:
         gravity_m_s2=float(scenario.gravity_m_s2),
         ground_contact=bool(scenario.ground_contact),
         compliant_legs=bool(scenario.compliant_legs),
+        leg_cone_half_angle_deg=float(scenario.leg_cone_half_angle_deg),
     )
 
 
