@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
+from splitter_model.rotations import quaternion_to_matrix
 from splitter_mpc.core.gait import (
     ANTIPARALLEL_TOLERANCE,
     GaitConfig,
@@ -27,6 +28,7 @@ from splitter_mpc.core.gait import (
     propagate_attitude,
     quaternion_multiply,
     smallest_rotation,
+    timed_landing_reference,
 )
 from splitter_msgs_py import names
 
@@ -861,3 +863,39 @@ def test_invalid_plan_arrays_name_the_parameter(arrays: tuple, parameter: str) -
 def test_config_from_parameters_names_the_bad_one(params: dict, name: str) -> None:
     with pytest.raises(ValueError, match=f"^{name}"):
         gait_config_from_parameters(params)
+
+
+# --- the timed landing (attitude_reference: landing_timed) ------------------------------------
+@pytest.mark.parametrize("seed", range(8))
+def test_a_timed_landing_meets_the_ground_with_the_tether_level(seed: int) -> None:
+    """The reference, propagated to the predicted touchdown, has the tether level and the
+    belly along the conserved momentum, at the spin nearest the one the momentum has."""
+    rng = np.random.default_rng(seed)
+    q = rng.standard_normal(4)
+    q /= np.linalg.norm(q)
+    inertia = np.array([0.5, 141.4, 150.0])  # [kg m^2] the belly axis the largest
+    w = rng.uniform(-0.2, 0.2, 3) + np.array([0.0, 0.0, 0.45])
+    touchdown_s = float(rng.uniform(1.5, 4.5))
+    q_ref, w_ref = timed_landing_reference(q, w, inertia, touchdown_s, tilt_tolerance_deg=0.0)
+    momentum = quaternion_to_matrix(q) @ (inertia * w)
+    h = momentum / np.linalg.norm(momentum)
+    at_touchdown = quaternion_to_matrix(propagate_attitude(q_ref, w_ref, touchdown_s))
+    assert abs(at_touchdown[2, 0]) < 1e-9  # the tether (body x) level
+    np.testing.assert_allclose(at_touchdown[:, 2], h, atol=1e-9)  # the belly along H
+    assert w_ref[0] == 0.0 and w_ref[1] == 0.0 and w_ref[2] > 0.0
+    rate_now = np.linalg.norm(momentum) / inertia[2]
+    assert abs(w_ref[2] - rate_now) <= math.pi / touchdown_s + 1e-9
+
+
+def test_nothing_to_time_without_a_tilted_momentum_or_time() -> None:
+    inertia = np.array([0.5, 141.4, 150.0])
+    spin = np.array([0.0, 0.0, 0.45])  # about the vertical: level at every phase
+    assert timed_landing_reference(IDENTITY, spin, inertia, 3.0) is None
+    assert timed_landing_reference(IDENTITY, np.zeros(3), inertia, 3.0) is None
+    tilted = axis_angle([1.0, 0.0, 0.0], 0.3)
+    slightly = axis_angle([1.0, 0.0, 0.0], math.radians(2.9))  # within the 3 deg tolerance
+    assert timed_landing_reference(slightly, spin, inertia, 3.0) is None
+    assert timed_landing_reference(slightly, spin, inertia, 3.0, tilt_tolerance_deg=2.8)
+    assert timed_landing_reference(tilted, spin, inertia, 0.0) is None
+    assert timed_landing_reference(tilted, spin, inertia, math.inf) is None
+    assert timed_landing_reference(tilted, spin, inertia, 3.0) is not None

@@ -293,9 +293,15 @@ def check_run(config: GaitConfig, ticks: list[Tick], outputs: list[GaitOutput]) 
                     at_rest_since = t
                 dwelt = at_rest_since is not None and t - at_rest_since >= config.landed_dwell_ns
                 assert (out.phase == GaitPhase.LANDED) == dwelt
-            # The references: on the first tick and when Landing starts, never again.
+            # The references: on the first tick and when Landing starts, never again;
+            # landing_timed also at every lift-off (the flight's timed landing).
             landing_starts = out.phase in LANDING_PHASES and prev.phase not in LANDING_PHASES
-            assert (out.reference is not None) == landing_starts
+            if config.attitude_reference == "landing_timed":
+                liftoff = prev.on_ground and not out.on_ground
+                assert not landing_starts or out.reference is not None
+                assert out.reference is None or landing_starts or liftoff
+            else:
+                assert (out.reference is not None) == landing_starts
             # (d) Thrusts: the running one ends at its duration or at lift-off.
             if prev.thrusting:
                 start, hemi = thrusts[-1]

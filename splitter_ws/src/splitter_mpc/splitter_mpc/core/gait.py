@@ -87,7 +87,12 @@ _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000  # [ns/s]
 HEMI_INDEX: dict[str, int] = {hemi: i for i, hemi in enumerate(names.HEMIS)}
 JUMP_HEMIS = ("a", "b", "auto", "both")
-ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref", "momentum_aligned")
+ATTITUDE_REFERENCE_MODES = ("initial", "integrate_w_ref", "momentum_aligned", "landing_timed")
+LANDING_SPIN_AXIS = (0.0, 0.0, 1.0)  # body z, the belly normal: the spin a landing keeps
+# [deg] a momentum this close to the vertical tilts the tether at most this much at any
+# phase: 5.6 m x sin 3 deg = 0.29 m between the hemis, within the legs' 0.4 m stroke, so
+# the landing is not timed (timing it costs spin)
+LANDING_TILT_TOLERANCE_DEG = 3.0
 AXIS_EPS_RAD_S = 1e-9  # [rad/s] a w_ref shorter than this has no axis (as in the MPC's OCP)
 MOMENTUM_EPS_KG_M2_S = 1e-9  # [kg m^2/s] an angular momentum shorter than this has no direction
 # [-] |a + b| of unit vectors below which they count as opposite: sqrt(float64 eps), the
@@ -264,7 +269,61 @@ def attitude_reference_at_stamp(
         return q, True
     given = np.asarray(orientation_wxyz, dtype=float).reshape(-1)
     _quaternion(given, "orientation_wxyz")
-    return given.copy(), mode == "integrate_w_ref"
+    return given.copy(), mode in ("integrate_w_ref", "landing_timed")
+
+
+def timed_landing_reference(
+    orientation_wxyz: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike,
+    touchdown_in_s: float,
+    *,
+    spin_axis_body: ArrayLike = LANDING_SPIN_AXIS,
+    tilt_tolerance_deg: float = LANDING_TILT_TOLERANCE_DEG,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """(attitude reference now, body rate reference) that meets the ground with the tether level.
+
+    In torque-free flight the world angular momentum ``H = R I w`` is conserved; a
+    steady spin about the body axis ``e`` (the belly normal, the axis the morphing
+    makes the largest moment in flight) has ``e`` along ``H`` and the tether (body x)
+    turning in the plane across ``H``, level twice a turn: along ``u = H x z_world``.
+    The reference starts from the momentum-aligned attitude
+    (:func:`momentum_aligned_attitude`), whose tether is ``phi0`` from ``u`` about
+    ``H``, and spins about ``e`` at the rate ``w*`` that turns the tether onto ``+-u``
+    in ``touchdown_in_s`` [s]: ``w* = (k pi - phi0) / T``, the ``k`` whose ``w*`` is
+    nearest the spin the momentum has about ``e`` now (``|H| / e' I e``; the tether
+    length sets it, so the MPC needs the least morphing). None when there is nothing
+    to time: no momentum, no time left, ``H`` within ``tilt_tolerance_deg`` of the
+    vertical (the tether is then as level at every phase), or the spin it has would
+    meet the ground with the tether within that tolerance anyway (timing costs spin).
+    """
+    q = _quaternion(orientation_wxyz, "orientation_wxyz")
+    w = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
+    inertia = _principal_inertia(principal_inertia_kg_m2, "principal_inertia_kg_m2")
+    axis = _unit3(spin_axis_body, "spin_axis_body")
+    momentum = rotation_matrix(q) @ (inertia * w)  # H [kg m^2/s]
+    momentum_norm = float(np.linalg.norm(momentum))
+    if not (math.isfinite(touchdown_in_s) and touchdown_in_s > 0.0):
+        return None
+    if momentum_norm < MOMENTUM_EPS_KG_M2_S:
+        return None
+    h = momentum / momentum_norm
+    level = np.cross(h, (0.0, 0.0, 1.0))
+    if float(np.linalg.norm(level)) < math.sin(math.radians(tilt_tolerance_deg)):
+        return None
+    level /= np.linalg.norm(level)
+    aligned = momentum_aligned_attitude(q, w, inertia, axis)
+    tether = rotation_matrix(aligned)[:, 0]
+    phi0 = math.atan2(float(np.cross(level, tether) @ h), float(level @ tether))
+    rate_now = momentum_norm / float(axis**2 @ inertia)  # [rad/s] about e
+    # left alone, the spin it has meets the ground with the tether this far from level
+    coasting = rotation_matrix(propagate_attitude(aligned, axis * rate_now, touchdown_in_s))
+    if abs(float(coasting[2, 0])) < math.sin(math.radians(tilt_tolerance_deg)):
+        return None
+    k = round((rate_now * touchdown_in_s + phi0) / math.pi)
+    candidates = [(j * math.pi - phi0) / touchdown_in_s for j in (k - 1, k, k + 1)]
+    rate = min((c for c in candidates if c > 0.0), key=lambda c: (abs(c - rate_now), c))
+    return aligned, axis * rate
 
 
 # --- geometry ------------------------------------------------------------------------------
@@ -535,7 +594,9 @@ class GaitConfig:
         "integrate_w_ref",
         "attitude reference: hold the first measured attitude (initial), propagate it with "
         "w_ref (integrate_w_ref), or propagate it with w_ref after turning the body axis of "
-        "w_ref onto the measured angular momentum (momentum_aligned)",
+        "w_ref onto the measured angular momentum (momentum_aligned); landing_timed: as "
+        "integrate_w_ref from every lift-off, then from each flight's apex a spin about the "
+        "belly timed to meet the ground with the tether level",
         choices=ATTITUDE_REFERENCE_MODES,
     )
 
@@ -587,7 +648,7 @@ class GaitConfig:
     @property
     def needs_principal_inertia(self) -> bool:
         """Whether :meth:`GaitPhaseMachine.update` needs the measured principal moments."""
-        return self.attitude_reference == "momentum_aligned"
+        return self.attitude_reference in ("momentum_aligned", "landing_timed")
 
 
 def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
@@ -803,12 +864,6 @@ class GaitPhaseMachine:
             self._phase = phase
             self._phase_since_ns = t_ns
 
-        reference = None
-        landing = phase in _LANDING_PHASES
-        if first or (landing and not self._landing_reference_set):
-            reference = self._new_reference(t_ns, q, rate, inertia, landing)
-            self._reference = reference
-
         touchdown_in_s = (
             0.0
             if self._on_ground
@@ -816,6 +871,29 @@ class GaitPhaseMachine:
                 min(heights), float(velocity[2]), self.gravity_m_s2, cfg.touchdown_height_m
             )
         )
+        reference = None
+        landing = phase in _LANDING_PHASES
+        timed = cfg.attitude_reference == "landing_timed"
+        if timed and contact_event == "liftoff":  # a new flight: time its landing
+            assert inertia is not None  # needs_principal_inertia
+            plan = timed_landing_reference(q, rate, inertia, touchdown_in_s)
+            if plan is not None:
+                self._landing_reference_set = self._landing_reference_set or landing
+                reference = AttitudeReference(
+                    stamp_ns=t_ns, w_ref_rad_s=plan[1], q_ref_wxyz=plan[0], propagate=True
+                )
+                _LOG.debug(
+                    "landing timed at t = %d ns: %.3f rad/s about the belly, touchdown in %.2f s",
+                    t_ns,
+                    float(np.linalg.norm(plan[1])),
+                    touchdown_in_s,
+                )
+            elif not landing:  # nothing to time: the flight reference, from here
+                reference = self._new_reference(t_ns, q, rate, inertia, False)
+        if reference is None and (first or (landing and not self._landing_reference_set)):
+            reference = self._new_reference(t_ns, q, rate, inertia, landing)
+        if reference is not None:
+            self._reference = reference
         if self._thrust is not None:
             jump = cfg.jumps[self._thrust.index]
             force, torque = _split_jump_wrench(jump, q, radius_x, self._thrust.hemi)
