@@ -59,12 +59,14 @@ from __future__ import annotations
 import copy
 import csv
 import math
+import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
@@ -688,6 +690,16 @@ def write_csv(results: Sequence[DrawResult], path: Path) -> None:
         writer.writeheader()
         for r in results:
             writer.writerow(csv_row(r))
+
+
+def write_draw_scenario(out: Path, index: int, document: Mapping[str, Any]) -> dict[str, str]:
+    """Write a draw's scenario file ``out/draws/draw_NNNN.yaml``; its path and the
+    ``splitter run`` command that flies it again (for the draw's campaign.json entry)."""
+    path = out / "draws" / f"draw_{index:04d}.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(dict(document), sort_keys=False), encoding="utf-8")
+    command = ["splitter", "run", str(path), "--no-ros", "--out", str(out / f"run_{index}")]
+    return {"scenario_yaml": str(path), "run_command": shlex.join(command)}
 
 
 def definitions() -> dict[str, Any]:

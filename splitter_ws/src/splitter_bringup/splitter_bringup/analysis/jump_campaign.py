@@ -399,7 +399,7 @@ def classify_landing(series: RunSeries, scenario: Scenario, cone_deg: float) -> 
     on_legs = int(_value(metrics, "touchdowns_on_legs", 0.0))
     body_s = _value(metrics, "body_ground_contact_s", 0.0)
     landed_at = _value(metrics, "landed_at_s")
-    tilt = tether_tilt_deg(np.asarray(series.orientation_wxyz, dtype=float))
+    max_tilt = float(np.max(tether_tilt_deg(np.asarray(series.orientation_wxyz)), initial=0.0))
     w = np.linalg.norm(np.asarray(series.angular_velocity_rad_s, dtype=float), axis=1)
     legs_tilts = [_value(metrics, f"touchdown_{k}_legs_tilt_deg") for k in range(1, touchdowns + 1)]
     td_w = [_value(metrics, f"touchdown_{k}_w_rad_s") for k in range(1, touchdowns + 1)]
@@ -418,7 +418,7 @@ def classify_landing(series: RunSeries, scenario: Scenario, cone_deg: float) -> 
         touchdowns_on_legs=on_legs,
         legs_tilts_deg=legs_tilts,
         cone_deg=cone_deg,
-        max_tether_tilt_deg=float(np.max(tilt, initial=0.0)),
+        max_tether_tilt_deg=max_tilt,
         jumps_left=len(scenario.jumps) - jumps_done,
         both_down=both_down,
     )
@@ -431,7 +431,7 @@ def classify_landing(series: RunSeries, scenario: Scenario, cone_deg: float) -> 
         touchdowns_on_legs=on_legs,
         body_ground_contact_s=body_s,
         landed_at_s=landed_at,
-        max_tether_tilt_deg=float(np.max(tilt, initial=0.0)),
+        max_tether_tilt_deg=max_tilt,
         peak_w_rad_s=float(np.max(w, initial=0.0)),
         touchdown_w_rad_s=max((v for v in td_w if math.isfinite(v)), default=math.nan),
         touchdown_tether_tilt_deg=max((v for v in td_tilt if math.isfinite(v)), default=math.nan),

@@ -43,8 +43,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from splitter_bringup.analysis.campaign import (
     DEFAULT_JOINT_EFFORT_NOISE,
     W_MAX_RAD_S,
@@ -60,6 +58,7 @@ from splitter_bringup.analysis.campaign import (
     scenario_for_draw,
     summarize,
     write_csv,
+    write_draw_scenario,
 )
 from splitter_bringup.analysis.jump_campaign import JumpRanges
 from splitter_bringup.run.campaign import fly_draw, run_on_dask
@@ -337,7 +336,6 @@ def main(args: argparse.Namespace) -> int:
     write_csv(results, out / "draws.csv")
     summary = summarize(results).as_dict()
     summary["wall_time_s"] = wall
-    yaml_dir = out / "draws"
     per_draw = []
     for (scenario, draw), result in zip(jobs, results, strict=True):
         entry: dict[str, Any] = {
@@ -348,16 +346,10 @@ def main(args: argparse.Namespace) -> int:
         }
         wanted = args.yaml == "all" or (args.yaml == "failed" and not result.success)
         if wanted and spec.estimator and args.replay is None:
-            path = yaml_dir / f"draw_{draw.index:04d}.yaml"
-            path.parent.mkdir(exist_ok=True)
             doc = scenario_document(
                 base, draw, scenario.duration_s, robot_errors_for_draw(draw, spec)
             )
-            path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
-            entry["scenario_yaml"] = str(path)
-            entry["run_command"] = shlex.join(
-                ["splitter", "run", str(path), "--no-ros", "--out", str(out / f"run_{draw.index}")]
-            )
+            entry.update(write_draw_scenario(out, draw.index, doc))
         per_draw.append(entry)
     document = {
         "scenario": base.name,

@@ -32,9 +32,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from splitter_bringup.analysis.campaign import draw_seeds
+from splitter_bringup.analysis.campaign import draw_seeds, write_draw_scenario
 from splitter_bringup.analysis.jump_campaign import (
     JumpRanges,
     definitions,
@@ -156,15 +154,8 @@ def main(args: argparse.Namespace) -> int:
         }
         failed = not all(o.success for o in result.outcomes.values())
         if args.yaml == "all" or (args.yaml == "failed" and failed) or args.replay is not None:
-            path = out / "draws" / f"draw_{draw.index:04d}.yaml"
-            path.parent.mkdir(exist_ok=True)
-            path.write_text(
-                yaml.safe_dump(jump_scenario_document(variants, draw), sort_keys=False),
-                encoding="utf-8",
-            )
-            entry["scenario_yaml"] = str(path)
-            entry["run_command"] = shlex.join(
-                ["splitter", "run", str(path), "--no-ros", "--out", str(out / f"run_{draw.index}")]
+            entry.update(
+                write_draw_scenario(out, draw.index, jump_scenario_document(variants, draw))
             )
         per_draw.append(entry)
     document = {
