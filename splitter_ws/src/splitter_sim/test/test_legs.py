@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_sim.core.legs import LegImpedance, leg_stance_force
+from splitter_sim.core.legs import LegImpedance, foot_hold_force, leg_stance_force
 from splitter_sim.core.simulator import SimConfig
 
 # The simulator's defaults (SimConfig): weak spring, strong damper, 190 N cap, mu = 0.8.
@@ -20,6 +20,8 @@ LEGS = LegImpedance(
     force_max_n=190.0,
     roll_stiffness_nm_rad=24.0,
     roll_damping_nm_s_rad=4.8,
+    hold_stiffness_n_m=400.0,
+    stick_speed_m_s=0.02,
 )
 SPEED = st.floats(-20.0, 20.0)  # [m/s] a velocity component
 VELOCITY = st.tuples(SPEED, SPEED, SPEED)
@@ -142,3 +144,27 @@ def test_the_normal_force_is_the_capped_impedance_and_the_tangential_opposes_the
         speed = math.hypot(vx, vy)
         assert fx * vx + fy * vy == pytest.approx(-f_t * speed, rel=1e-9)
         assert abs(fx * vy - fy * vx) <= 1e-9 * f_t * speed + 1e-300
+
+
+@SETTINGS
+@given(
+    compression=COMPRESSION,
+    velocity=VELOCITY,
+    legs=IMPEDANCES,
+    hold=st.tuples(st.floats(-500.0, 500.0), st.floats(-500.0, 500.0)),
+)
+def test_planted_feet_stay_within_the_cap_and_the_friction_cone(
+    compression: float, velocity, legs: LegImpedance, hold
+) -> None:
+    fx, fy, fz = leg_stance_force(compression, velocity, legs, (0.0, 0.0, 1.0), hold)
+    assert fz >= 0.0
+    assert math.hypot(fx, fy, fz) <= legs.force_max_n * (1 + 1e-9) + 1e-9
+    assert math.hypot(fx, fy) <= legs.friction_coefficient * fz * (1 + 1e-9) + 1e-9
+
+
+def test_planted_feet_pull_back_towards_where_they_stuck() -> None:
+    hold = foot_hold_force((0.01, -0.02), LEGS)  # the hemi 1 cm ahead, 2 cm right
+    assert hold == pytest.approx((-4.0, 8.0))
+    fx, fy, fz = leg_stance_force(0.3, (0.0, 0.0, 0.0), LEGS, (0.0, 0.0, 1.0), hold)
+    assert (fx, fy) == pytest.approx(hold)
+    assert fz == pytest.approx(LEGS.stiffness_n_m * 0.3)

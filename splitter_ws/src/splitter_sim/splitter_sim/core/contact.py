@@ -1,10 +1,12 @@
 """Spring-damper ground contact with a regularised Coulomb friction cone (paper section V).
 
-Each lumped mass touching the plane ``z = 0`` (world, z up) feels
+Each lumped mass touching the ground (the plane ``z = 0``, world z up, or the plane
+of :class:`splitter_model.terrain.Terrain` it touches, of normal ``n``) feels
 
-* a normal force ``F_n = s delta + c d(delta)/dt`` (paper eq. for F_c), with the
-  penetration ``delta = -z`` and ``F_n`` clamped at 0 (the ground pushes, never pulls);
-* a tangential force opposing the slip velocity ``v_t``:
+* a normal force ``F_n = s delta + c d(delta)/dt`` along ``n`` (paper eq. for F_c),
+  with the penetration ``delta`` (minus the signed distance to the plane) and ``F_n``
+  clamped at 0 (the ground pushes, never pulls);
+* a tangential force opposing the slip velocity ``v_t`` (along the plane):
   ``F_t = -min(c_t |v_t|, mu F_n) v_t / |v_t|``.
 
 The friction law is Coulomb's cone with a viscous regularisation near zero slip
@@ -31,44 +33,108 @@ def ground_contact_force(  # noqa: PLR0917  (hot path: positional floats are fas
     damping_n_s_m: Any,
     friction_coefficient: Any,
     friction_damping_n_s_m: Any,
+    nx: Any = 0.0,
+    ny: Any = 0.0,
+    nz: Any = 1.0,
     ops: Any = None,
 ) -> tuple[Any, Any, Any]:
-    """World-frame ground force [N] on a point at height ``z_m`` moving at ``v``.
+    """World-frame ground force [N] on a point ``z_m`` from the ground moving at ``v``.
 
-    Zero when the point is above the ground or separating fast enough that the
+    ``z_m`` is the point's signed distance to the ground plane of unit normal ``n``
+    (world; default the level ground, ``z_m`` then the height): the normal force acts
+    along ``n`` with the normal speed ``n . v``, friction against the slip ``v - (n . v) n``.
+    Zero when the point is off the ground or separating fast enough that the
     damper would pull. ``ops`` None: floats, the law's branches are taken. Else
     the CasADi symbols of the simulator's compiled kernels (:mod:`.kernels`):
     ``ops`` has casadi's ``hypot``, ``if_else`` and ``logic_and``, and every
-    branch is a selection (the same formulas in the same order).
+    branch is a selection (the same formulas in the same order; on level ground
+    they give the level law's numbers exactly).
     """
-    normal = -stiffness_n_m * z_m - damping_n_s_m * vz_m_s
+    if ops is None and nx == 0.0 and ny == 0.0 and nz == 1.0:
+        return _level_contact_force(
+            z_m,
+            vx_m_s,
+            vy_m_s,
+            vz_m_s,
+            stiffness_n_m,
+            damping_n_s_m,
+            friction_coefficient,
+            friction_damping_n_s_m,
+        )
+    v_n = nx * vx_m_s + ny * vy_m_s + nz * vz_m_s
+    normal = -stiffness_n_m * z_m - damping_n_s_m * v_n
     if ops is None and (z_m >= 0.0 or normal <= 0.0):
         return 0.0, 0.0, 0.0
-    slip = math.hypot(vx_m_s, vy_m_s) if ops is None else ops.hypot(vx_m_s, vy_m_s)
-    if ops is None and slip == 0.0:
-        return 0.0, 0.0, normal
+    tx, ty, tz = vx_m_s - v_n * nx, vy_m_s - v_n * ny, vz_m_s - v_n * nz
+    hypot = math.hypot if ops is None else ops.hypot
+    slip = hypot(hypot(tx, ty), tz)
     cone = friction_coefficient * normal
     viscous = friction_damping_n_s_m * slip
     if ops is None:
+        if slip == 0.0:
+            return normal * nx, normal * ny, normal * nz
         scale = -(viscous if viscous < cone else cone) / slip
-        return scale * vx_m_s, scale * vy_m_s, normal
+        return scale * tx + normal * nx, scale * ty + normal * ny, scale * tz + normal * nz
     scale = -ops.if_else(viscous < cone, viscous, cone) / slip
     pressed = ops.logic_and(z_m < 0.0, normal > 0.0)
     sliding = ops.logic_and(pressed, slip != 0.0)
     return (
-        ops.if_else(sliding, scale * vx_m_s, 0.0),
-        ops.if_else(sliding, scale * vy_m_s, 0.0),
-        ops.if_else(pressed, normal, 0.0),
+        ops.if_else(sliding, scale * tx, 0.0) + ops.if_else(pressed, normal * nx, 0.0),
+        ops.if_else(sliding, scale * ty, 0.0) + ops.if_else(pressed, normal * ny, 0.0),
+        ops.if_else(sliding, scale * tz, 0.0) + ops.if_else(pressed, normal * nz, 0.0),
     )
 
 
-def mass_heights_m(
-    pz_m: Any, r2: Sequence[Any], rx: Sequence[Any], ry: Sequence[Any], rz: Sequence[Any]
+def _level_contact_force(  # noqa: PLR0917  (as ground_contact_force)
+    z_m: float,
+    vx_m_s: float,
+    vy_m_s: float,
+    vz_m_s: float,
+    stiffness_n_m: float,
+    damping_n_s_m: float,
+    friction_coefficient: float,
+    friction_damping_n_s_m: float,
+) -> tuple[float, float, float]:
+    """:func:`ground_contact_force` on level ground, with floats (the hot path)."""
+    normal = -stiffness_n_m * z_m - damping_n_s_m * vz_m_s
+    if z_m >= 0.0 or normal <= 0.0:
+        return 0.0, 0.0, 0.0
+    slip = math.hypot(vx_m_s, vy_m_s)
+    if slip == 0.0:
+        return 0.0, 0.0, normal
+    cone = friction_coefficient * normal
+    viscous = friction_damping_n_s_m * slip
+    scale = -(viscous if viscous < cone else cone) / slip
+    return scale * vx_m_s, scale * vy_m_s, normal
+
+
+def mass_heights_m(  # noqa: PLR0917  (as the kernels' symbols)
+    p_m: Sequence[Any],
+    rotation: Sequence[Any],
+    rx: Sequence[Any],
+    ry: Sequence[Any],
+    rz: Sequence[Any],
+    planes: Sequence[Sequence[Any]] | None = None,
 ) -> list[Any]:
-    """World height [m] of each mass: COM height ``pz_m`` plus the third row ``r2`` of the
-    rotation (world <- base) times the mass's position ``(rx, ry, rz)`` from the COM (base)."""
-    r20, r21, r22 = r2
-    return [pz_m + r20 * x + r21 * y + r22 * z for x, y, z in zip(rx, ry, rz, strict=True)]
+    """Signed distance [m] of each mass to its ground plane (``planes``: (nx, ny, nz, d)
+    per mass; None: its world height above z = 0).
+
+    The mass is at the COM ``p_m`` plus the ``rotation`` (world <- base, 9 entries row
+    by row) of its position ``(rx, ry, rz)`` from the COM (base). The same arithmetic
+    as :func:`splitter_sim.core.rigid_body.external_load`.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation
+    px, py, pz = p_m
+    heights = [pz + r20 * x + r21 * y + r22 * z for x, y, z in zip(rx, ry, rz, strict=True)]
+    if planes is None:
+        return heights
+    return [
+        nx * (px + r00 * x + r01 * y + r02 * z)
+        + ny * (py + r10 * x + r11 * y + r12 * z)
+        + nz * height
+        - d
+        for (nx, ny, nz, d), x, y, z, height in zip(planes, rx, ry, rz, heights, strict=True)
+    ]
 
 
 def contact_reach_m(  # noqa: PLR0917  (as the kernels' symbols)

@@ -114,7 +114,9 @@ WS_CANDIDATES = slice(262, 272)  # 1.0 per mass that may touch the ground (prm.c
 FORCE_SLOTS = 4  # external forces on masses (prm.thrust: jump thrust, leg stance forces)
 WS_FORCES = slice(272, 272 + 4 * FORCE_SLOTS)  # per slot: mass index, force world [N]
 WS_OWN_INERTIA = slice(WS_FORCES.stop, WS_FORCES.stop + 3)  # hemi bodies' own [kg m^2]
-WS_SIZE = WS_OWN_INERTIA.stop
+# the ground plane (nx, ny, nz, d) of each mass (splitter_model.terrain; level: 0, 0, 1, 0)
+WS_PLANES = slice(WS_OWN_INERTIA.stop, WS_OWN_INERTIA.stop + 4 * N_MASSES)
+WS_SIZE = WS_PLANES.stop
 
 # --- shape block (in the outputs) ------------------------------------------------------
 SH_MOVING = 0  # 1.0 when any joint velocity or acceleration is non-zero
@@ -285,11 +287,10 @@ def _sym_ground(ca: Any, block: Sequence, ws: Any) -> list:
     (the shape's ``radius_max`` and ``speed_max`` as ``shape_from_block`` sets them).
     """
     s = ws[WS_STATE]
-    pz = s[2]
-    r2 = rotation_matrix(s[6], s[7], s[8], s[9])[6:]
+    rot = rotation_matrix(s[6], s[7], s[8], s[9])
     k = SH_MASSES
     rx, ry, rz = block[k : k + 10], block[k + 10 : k + 20], block[k + 20 : k + 30]
-    heights = mass_heights_m(pz, r2, rx, ry, rz)
+    heights = mass_heights_m(s[:3], rot, rx, ry, rz, _planes(ws))
     low = []
     for hemi in (heights[:5], heights[5:]):
         lowest = hemi[0]
@@ -305,6 +306,13 @@ def _sym_ground(ca: Any, block: Sequence, ws: Any) -> list:
     for i, height in enumerate(heights):
         candidates += ca.if_else(height <= reach, float(2**i), 0.0)
     return [radius, *low, candidates]
+
+
+def _planes(ws: Any) -> list[tuple]:
+    """Each mass's ground plane (nx, ny, nz, d) from the workspace."""
+    return [
+        tuple(ws[WS_PLANES.start + 4 * i : WS_PLANES.start + 4 * i + 4]) for i in range(N_MASSES)
+    ]
 
 
 class _Pickable(list):
@@ -338,6 +346,7 @@ def _sym_external(ca: Any, ws: Any) -> Callable[..., tuple]:
     k, c, mu, ct = ws[WS_CONTACT]
     loads = SimpleNamespace(
         thrust=thrust,
+        ground_planes=_planes(ws),
         contact=range(N_MASSES),
         contact_stiffness=k,
         contact_damping=c,
@@ -575,6 +584,7 @@ class Kernels:
         ws[WS_POS_MAX] = limits.position_max
         ws[WS_OWN_INERTIA] = own_inertia
         self.ws = ws
+        self.set_planes(getattr(prm, "ground_planes", None))
         self.out_shape = np.zeros(SHAPE_SIZE)
         self.out_begin = np.zeros(BEGIN_SIZE)
         self.out_step = np.zeros(STEP_SIZE)
@@ -603,6 +613,11 @@ class Kernels:
         for i in contact:
             ws[WS_CANDIDATES.start + i] = 1.0
         self._forces = (thrust, contact)
+
+    def set_planes(self, planes: Sequence[Sequence[float]] | None) -> None:
+        """Write each mass's ground plane (nx, ny, nz, d); None: the level plane z = 0."""
+        flat = (0.0, 0.0, 1.0, 0.0)
+        self.ws[WS_PLANES] = [v for plane in (planes or [flat] * N_MASSES) for v in plane]
 
     def evaluate(
         self,

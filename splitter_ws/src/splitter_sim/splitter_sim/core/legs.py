@@ -63,6 +63,8 @@ class LegImpedance:
     cone_half_angle_deg: float = 60.0  # [deg] workspace: belly normal to ground normal
     roll_stiffness_nm_rad: float = 0.0  # [N m/rad] levelling moment about the tether axis
     roll_damping_nm_s_rad: float = 0.0  # [N m s/rad]
+    hold_stiffness_n_m: float = 0.0  # [N/m] planted feet: spring to where they stuck
+    stick_speed_m_s: float = 0.0  # [m/s] the feet stick below this sliding speed
 
     def __post_init__(self) -> None:
         for name in (
@@ -72,6 +74,8 @@ class LegImpedance:
             "friction_coefficient",
             "roll_stiffness_nm_rad",
             "roll_damping_nm_s_rad",
+            "hold_stiffness_n_m",
+            "stick_speed_m_s",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -114,11 +118,14 @@ def leg_stance_force(
     velocity_world_m_s: tuple[float, float, float],
     legs: LegImpedance,
     belly_up: tuple[float, float, float] = (0.0, 0.0, 1.0),
+    hold_n: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[float, float, float]:
-    """World force [N] of a hemi's legs compressed by ``compression_m`` (<= 0: no contact).
+    """Force [N] of a hemi's legs compressed by ``compression_m`` (<= 0: no contact), in
+    the ground's frame (z along the ground normal; on level ground the world).
 
     ``velocity_world_m_s`` is the hemi body's velocity [m/s], ``belly_up`` the hemi's
-    body ``+z`` in the world (unit; the legs push along it). Module docstring for
+    body ``+z`` (unit; the legs push along it), ``hold_n`` the planted feet's spring
+    (x, y) [N] along the ground (:func:`foot_hold_force`). Module docstring for
     the law; the result's norm never exceeds ``legs.force_max_n`` and the result
     stays within the ground's friction cone.
     """
@@ -126,6 +133,8 @@ def leg_stance_force(
         return 0.0, 0.0, 0.0
     vx, vy, vz = velocity_world_m_s
     nx, ny, nz = belly_up
+    if hold_n[0] != 0.0 or hold_n[1] != 0.0:
+        return _held_stance_force(compression_m, velocity_world_m_s, legs, belly_up, hold_n)
     if nx == 0.0 and ny == 0.0:  # level: the leg axis is the ground normal
         return _level_stance_force(compression_m, vx, vy, vz, legs)
     v_n = vx * nx + vy * ny + vz * nz
@@ -151,6 +160,49 @@ def leg_stance_force(
         cut = cone / along_ground
         fx, fy = fx * cut, fy * cut
     return fx, fy, fz
+
+
+def _held_stance_force(
+    compression_m: float,
+    velocity: tuple[float, float, float],
+    legs: LegImpedance,
+    belly_up: tuple[float, float, float],
+    hold_n: tuple[float, float],
+) -> tuple[float, float, float]:
+    """:func:`leg_stance_force` with planted feet: the hip damper plus the hold spring
+    along the ground, within the friction cone and the force cap (normal first)."""
+    vx, vy, vz = velocity
+    nx, ny, nz = belly_up
+    v_n = vx * nx + vy * ny + vz * nz
+    normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * v_n
+    normal = min(max(normal, 0.0), legs.force_max_n)
+    if normal == 0.0:
+        return 0.0, 0.0, 0.0
+    fx, fy, fz = normal * nx, normal * ny, normal * nz
+    if fz <= 0.0:
+        return 0.0, 0.0, 0.0
+    tx = hold_n[0] - legs.tangential_damping_n_s_m * vx + fx
+    ty = hold_n[1] - legs.tangential_damping_n_s_m * vy + fy
+    along = math.hypot(tx, ty)
+    limit = min(
+        legs.friction_coefficient * fz,
+        math.sqrt(max(legs.force_max_n * legs.force_max_n - fz * fz, 0.0)),
+    )
+    if along > limit:
+        tx, ty = tx * limit / along, ty * limit / along
+    return tx, ty, fz
+
+
+def foot_hold_force(offset_m: tuple[float, float], legs: LegImpedance) -> tuple[float, float]:
+    """Spring force (x, y) [N] along the ground of feet planted ``offset_m`` behind the
+    hemi: ``-k_hold offset`` (:attr:`LegImpedance.hold_stiffness_n_m`).
+
+    The hip damper alone lets a hemi standing on a slope creep downhill at
+    ``m g sin(slope) / c_t`` (0.13 m/s for a lunar hemi on 10 deg); feet that stick
+    hold it where the friction cone allows (``tan(slope) < mu``).
+    """
+    k = legs.hold_stiffness_n_m
+    return -k * offset_m[0], -k * offset_m[1]
 
 
 def _level_stance_force(

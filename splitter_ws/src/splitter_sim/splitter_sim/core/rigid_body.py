@@ -60,6 +60,7 @@ class DynamicsParameters:
         "friction_coefficient",
         "friction_damping",
         "gravity",
+        "ground_planes",
         "gyroscopic_sign",
         "thrust",
         "total_mass",
@@ -89,6 +90,9 @@ class DynamicsParameters:
         self.contact: tuple[int, ...] = ()
         # Jump thrust for this step: tuples (mass index, fx, fy, fz) world [N].
         self.thrust: tuple[tuple[int, float, float, float], ...] = ()
+        # The ground plane (nx, ny, nz, d) each mass touches (splitter_model.terrain);
+        # None: the level plane z = 0 for every mass.
+        self.ground_planes: Sequence[Sequence[Any]] | None = None
 
 
 def angular_velocity(shape: Any, lx: Any, ly: Any, lz: Any) -> tuple[Any, Any, Any]:
@@ -219,9 +223,10 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
     """Force (world), torque about the COM (body) and power on the relative motion.
 
     ``prm.thrust``: external forces (i, gx, gy, gz) on mass i, world [N]; then the
-    ground force ``law(height, vx, vy, vz, k, c, mu, c_t)`` (``prm``'s contact
-    stiffness, damping, friction coefficient and slope) on each mass of
-    ``prm.contact`` (``shape.rx`` ... ``shape.vz``, rotation ``r``, state ``s``,
+    ground force ``law(height, vx, vy, vz, k, c, mu, c_t, nx, ny, nz)`` (``prm``'s
+    contact stiffness, damping, friction coefficient and slope; ``height`` the signed
+    distance to the mass's plane of ``prm.ground_planes``, normal ``n``) on each mass
+    of ``prm.contact`` (``shape.rx`` ... ``shape.vz``, rotation ``r``, state ``s``,
     angular velocity ``w``). With floats (``select`` None) only the masses below
     the ground that the ground pushes count (and go to ``forces`` as (i, fx, fy,
     fz, height)); with symbols every mass's force goes through ``select(i, gx, gy,
@@ -233,6 +238,8 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
     thrust, contact = prm.thrust, prm.contact
     k, c = prm.contact_stiffness, prm.contact_damping
     mu, ct = prm.friction_coefficient, prm.friction_damping
+    planes = prm.ground_planes
+    nx, ny, nz = 0.0, 0.0, 1.0
     rx, ry, rz, dvx, dvy, dvz = shape.rx, shape.ry, shape.rz, shape.vx, shape.vy, shape.vz
     fx = fy = fz = 0.0  # external non-gravity force, world [N]
     tx = ty = tz = 0.0  # external torque about the COM, body [N m]
@@ -245,6 +252,14 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
         else:
             x, y, z = rx[term], ry[term], rz[term]
             height = pz + r20 * x + r21 * y + r22 * z
+            if planes is not None:  # signed distance to the mass's plane
+                nx, ny, nz, d = planes[term]
+                height = (
+                    nx * (s[0] + r00 * x + r01 * y + r02 * z)
+                    + ny * (s[1] + r10 * x + r11 * y + r12 * z)
+                    + nz * height
+                    - d
+                )
             if select is None and height >= 0.0:
                 continue
             dx, dy, dz = dvx[term], dvy[term], dvz[term]
@@ -255,10 +270,10 @@ def external_load(  # noqa: PLR0917  (hot path: positional)
             mvx = vx + r00 * ux + r01 * uy + r02 * uz
             mvy = vy + r10 * ux + r11 * uy + r12 * uz
             mvz = vz + r20 * ux + r21 * uy + r22 * uz
-            gx, gy, gz = law(height, mvx, mvy, mvz, k, c, mu, ct)
+            gx, gy, gz = law(height, mvx, mvy, mvz, k, c, mu, ct, nx, ny, nz)
             if select is not None:
                 gx, gy, gz = select(term, gx, gy, gz)
-            elif gz == 0.0:
+            elif gx == 0.0 and gy == 0.0 and gz == 0.0:
                 continue
             elif forces is not None:
                 forces.append((term, gx, gy, gz, height))

@@ -44,11 +44,13 @@ from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, act
 from splitter_model.joints import LIMB_JOINT_SLICE, N_LIMBS
 from splitter_model.kinematics import joint_positions_from_radii, limb_joint_torques
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
+from splitter_model.terrain import SLOPE_MAX_DEG, Terrain
 from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
 from splitter_sim.core.contact import contact_reach_m, mass_heights_m
 from splitter_sim.core.legs import (
     LegImpedance,
+    foot_hold_force,
     leg_compression_m,
     leg_stance_force,
     legs_face_ground,
@@ -107,6 +109,8 @@ _NON_NEGATIVE = (
     "leg_tangential_damping_n_s_m",
     "leg_roll_stiffness_nm_rad",
     "leg_roll_damping_nm_s_rad",
+    "leg_hold_stiffness_n_m",
+    "leg_stick_speed_m_s",
     "command_extrapolation_s",
     "knot_blend_s",
 )
@@ -121,9 +125,12 @@ def _finite_force(value: ArrayLike, what: str) -> tuple[float, float, float]:
     return float(f[0]), float(f[1]), float(f[2])
 
 
-def _belly_up_z(s: list[float]) -> float:
-    """World z of the body's +z axis (the hemis' belly normal) in state ``s`` [-]."""
-    return rotation_matrix(s[6], s[7], s[8], s[9])[8]
+def _along(normal: tuple[float, float, float], x: float, y: float, z: float) -> float:
+    """``normal . (x, y, z)``; on level ground exactly ``z``."""
+    nx, ny, nz = normal
+    if nx == 0.0 and ny == 0.0:
+        return z
+    return nx * x + ny * y + nz * z
 
 
 @dataclass(frozen=True)
@@ -142,7 +149,23 @@ class SimConfig:
 
     dt_s: float = parameter_field(0.005, "simulation step [s] (paper Table I)", bounds=(1e-4, 0.05))
     gravity_m_s2: float = 0.0  # [m/s^2] magnitude, along -z world (the node's ``gravity``)
-    ground_contact: bool = parameter_field(True, "spring-damper ground plane at z = 0")
+    ground_contact: bool = parameter_field(True, "spring-damper ground (splitter_model.terrain)")
+    # The ground (splitter_model.terrain.Terrain): level z = 0 by default.
+    ground_slope_deg: float = parameter_field(
+        0.0,
+        "slope of the ground's base plane [deg] (splitter_model.terrain)",
+        bounds=(0.0, SLOPE_MAX_DEG),
+    )
+    ground_slope_azimuth_deg: float = parameter_field(
+        0.0,
+        "direction in which the ground rises, from world x about world z [deg]",
+        bounds=(-360.0, 360.0),
+    )
+    ground_steps_m: tuple[float, ...] = parameter_field(
+        (),
+        "steps on the ground, 5 values each: x_min, x_max, y_min, y_max, height [m] "
+        "(boxes raised above the base plane)",
+    )
     contact_stiffness_n_m: float = parameter_field(
         5.0e4, "ground stiffness per lumped mass [N/m]", bounds=(1.0, 1e8)
     )
@@ -195,6 +218,18 @@ class SimConfig:
     leg_roll_damping_nm_s_rad: float = parameter_field(
         4.8, "roll damping of a hemi's legs in stance [N m s/rad]", bounds=_GAIN_RANGE
     )
+    # splitter_sim.core.legs (planted feet): a lunar hemi (14.6 N) on a 10 deg slope
+    # leans 6 mm on this spring; 9 kg on it: 6.7 rad/s.
+    leg_hold_stiffness_n_m: float = parameter_field(
+        400.0,
+        "spring of a hemi's planted feet along the ground, from where they stuck [N/m]",
+        bounds=_GAIN_RANGE,
+    )
+    leg_stick_speed_m_s: float = parameter_field(
+        0.02,
+        "a hemi's feet stick (and hold it) once it slides slower than this [m/s]",
+        bounds=(0.0, 10.0),
+    )
     # splitter_sim.core.legs: a 0.4 m leg clears a 0.2 m half-wide body up to 90 - 30 deg.
     leg_cone_half_angle_deg: float = parameter_field(
         60.0,
@@ -232,6 +267,10 @@ class SimConfig:
             raise ValueError(
                 f"SimConfig.leg_cone_half_angle_deg must be in [1, 89] deg, got {cone!r}"
             )
+        try:
+            self.terrain  # noqa: B018  (validated by constructing it)
+        except ValueError as exc:
+            raise ValueError(f"SimConfig ground: {exc}") from exc
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
         if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
@@ -239,6 +278,13 @@ class SimConfig:
                 "SimConfig.contact_substeps must be an int in [1, 100], "
                 f"got {self.contact_substeps!r}"
             )
+
+    @property
+    def terrain(self) -> Terrain:
+        """The ground of ``ground_slope_deg``, ``ground_slope_azimuth_deg``, ``ground_steps_m``."""
+        return Terrain.from_parameters(
+            self.ground_slope_deg, self.ground_slope_azimuth_deg, self.ground_steps_m
+        )
 
     @property
     def legs(self) -> LegImpedance:
@@ -252,6 +298,8 @@ class SimConfig:
             cone_half_angle_deg=self.leg_cone_half_angle_deg,
             roll_stiffness_nm_rad=self.leg_roll_stiffness_nm_rad,
             roll_damping_nm_s_rad=self.leg_roll_damping_nm_s_rad,
+            hold_stiffness_n_m=self.leg_hold_stiffness_n_m,
+            stick_speed_m_s=self.leg_stick_speed_m_s,
         )
 
     @property
@@ -458,7 +506,16 @@ class Simulator:
         self._dt = self._dt_ns * 1e-9
         # Above this COM height minus body radius nothing touches nor pushes: skip checks.
         self._far_above_m = config.thrust_stroke_m + 1.0
+        terrain = config.terrain
+        self._terrain = terrain
+        self._ground_normal = terrain.normal
+        # world <- ground rotation of the legs' law on a slope (None: level)
+        self._ground_frame = None if terrain.slope_deg == 0.0 else terrain.ground_frame()
+        if not terrain.flat:  # a slope alone: one plane for every mass
+            self._prm.ground_planes = [(*terrain.normal, 0.0)] * 10
         self._legs = config.legs
+        # where each hemi's planted feet stuck (ground frame x, y [m]; None: not stuck)
+        self._foot_anchor: list[tuple[float, float] | None] = [None, None]
         self.contact_step_count = 0  # steps integrated with contact sub-steps
         library = kernels.load_library() if compiled else None
         self._kernels = (
@@ -629,13 +686,48 @@ class Simulator:
     # --- integration -------------------------------------------------------------
     def _mass_heights(self, s: list[float], shape: Shape) -> list[float] | None:
         """World height of every mass [m], or None when all are far above the ground."""
-        pz = s[2]
-        if pz - shape.radius_max > self._far_above_m:
+        if self._far_above(s, shape.radius_max):
             return None
         shape.relative()
         return mass_heights_m(
-            pz, rotation_matrix(s[6], s[7], s[8], s[9])[6:], shape.rx, shape.ry, shape.rz
+            s[:3],
+            rotation_matrix(s[6], s[7], s[8], s[9]),
+            shape.rx,
+            shape.ry,
+            shape.rz,
+            self._prm.ground_planes,
         )
+
+    def _far_above(self, s: list[float], radius_m: float) -> bool:
+        """Whether the body (``radius_m`` around the COM) is too far above the ground to
+        touch it or push within the coming step."""
+        terrain = self._terrain
+        ground = 0.0 if terrain.flat else terrain.highest_within_m(s[0], s[1], radius_m)
+        return s[2] - ground - radius_m > self._far_above_m
+
+    def _update_ground_planes(self, s: list[float], shape: Shape) -> None:
+        """The plane each mass touches at the start of the step (ground with steps).
+
+        A mass keeps its plane through the step (the planes are the workspace of the
+        compiled kernels): within one 5 ms step a mass moves a few centimetres.
+        """
+        if not self._terrain.steps or self._far_above(s, shape.radius_max):
+            return
+        shape.relative()
+        r = rotation_matrix(s[6], s[7], s[8], s[9])
+        points = [
+            (
+                s[0] + r[0] * x + r[1] * y + r[2] * z,
+                s[1] + r[3] * x + r[4] * y + r[5] * z,
+                s[2] + r[6] * x + r[7] * y + r[8] * z,
+            )
+            for x, y, z in zip(shape.rx, shape.ry, shape.rz, strict=True)
+        ]
+        planes = self._terrain.contact_planes(points)
+        if planes != self._prm.ground_planes:
+            self._prm.ground_planes = planes
+            if self._kernels is not None:
+                self._kernels.set_planes(planes)
 
     @staticmethod
     def _lowest_per_hemi(heights: list[float] | None) -> tuple[float, float]:
@@ -657,7 +749,8 @@ class Simulator:
         if per_hemi is None and fx == 0.0 and fy == 0.0 and fz == 0.0:
             return ()
         stroke = self.config.thrust_stroke_m
-        facing = legs_face_ground(_belly_up_z(s), self._legs)
+        r = rotation_matrix(s[6], s[7], s[8], s[9])
+        facing = legs_face_ground(_along(self._ground_normal, r[2], r[5], r[8]), self._legs)
         reach = [facing and low[h] <= stroke for h in range(2)]
         if per_hemi is not None:
             return tuple(
@@ -697,6 +790,7 @@ class Simulator:
         thrust: tuple[tuple[int, float, float, float], ...],
         s: list[float],
         shape: Shape,
+        update: bool = True,
     ) -> tuple[tuple[int, float, float, float], ...]:
         """Stance forces of the compliant legs (world, on each hemi's y limbs) for this step.
 
@@ -705,18 +799,32 @@ class Simulator:
         and it is not pushing a jump (the thrust is then the legs' force). The force is
         shared between the hemi's left and right feet, under its y limbs, so that the
         legs level the body about the tether axis (:func:`.legs.roll_load_share`).
+        Feet that slide slower than ``leg_stick_speed_m_s`` stick where they are and
+        hold the hemi there with a spring (:func:`.legs.foot_hold_force`) until the
+        friction cone lets them slip or they leave the ground; ``update`` False (a
+        snapshot) leaves where they stuck unchanged. On a slope the law acts in the
+        ground's frame.
         """
         if not self.config.compliant_legs:
             return ()
+        anchors = self._foot_anchor
         stroke = self.config.thrust_stroke_m
         pushing = {index for index, *_ in thrust}
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(s[6], s[7], s[8], s[9])
-        if not legs_face_ground(r22, self._legs):
+        normal = self._ground_normal
+        belly = _along(normal, r02, r12, r22)  # cosine of the legs' tilt from the normal
+        if not legs_face_ground(belly, self._legs):
+            if update:
+                anchors[0] = anchors[1] = None
             return ()
+        frame = self._ground_frame
+        legs = self._legs
         terms = []
         for h, body in enumerate(HEMI_BODY_INDEX):
-            compression = leg_compression_m(stroke, low[h], r22)
+            compression = leg_compression_m(stroke, low[h], belly)
             if compression <= 0.0 or body in pushing:
+                if update:
+                    anchors[h] = None
                 continue
             wx, wy, wz = angular_velocity(shape, s[10], s[11], s[12])
             shape.relative()
@@ -729,12 +837,42 @@ class Simulator:
                 s[4] + r10 * ux + r11 * uy + r12 * uz,
                 s[5] + r20 * ux + r21 * uy + r22 * uz,
             )
-            fx, fy, fz = leg_stance_force(compression, velocity, self._legs, (r02, r12, r22))
+            where = (s[0] + r00 * x + r01 * y + r02 * z, s[1] + r10 * x + r11 * y + r12 * z)
+            belly_up = (r02, r12, r22)
+            if frame is not None:  # the law in the ground's frame (z along the normal)
+                where_g = frame.T @ (where[0], where[1], s[2] + r20 * x + r21 * y + r22 * z)
+                where = (float(where_g[0]), float(where_g[1]))
+                velocity = tuple((frame.T @ velocity).tolist())
+                belly_up = tuple((frame.T @ belly_up).tolist())
+            anchor = anchors[h]
+            if (
+                anchor is None
+                and update
+                and legs.hold_stiffness_n_m > 0.0
+                and math.hypot(velocity[0], velocity[1]) < legs.stick_speed_m_s
+            ):
+                anchor = anchors[h] = where
+            hold = (
+                (0.0, 0.0)
+                if anchor is None
+                else foot_hold_force((where[0] - anchor[0], where[1] - anchor[1]), legs)
+            )
+            fx, fy, fz = leg_stance_force(compression, velocity, legs, belly_up, hold)
             if fz <= 0.0:
+                if update:
+                    anchors[h] = None
                 continue
+            if update and math.hypot(*hold) > legs.friction_coefficient * fz:
+                anchors[h] = None  # the feet slip
+            if frame is not None:
+                fx, fy, fz = (frame @ (fx, fy, fz)).tolist()
             left, right = HEMI_FOOT_INDEX[h]
             share = roll_load_share(
-                r21, wx, fx * r02 + fy * r12 + fz * r22, shape.ry[left] - y, self._legs
+                _along(normal, r01, r11, r21),
+                wx,
+                fx * r02 + fy * r12 + fz * r22,
+                shape.ry[left] - y,
+                legs,
             )
             terms.append((left, (0.5 + share) * fx, (0.5 + share) * fy, (0.5 + share) * fz))
             terms.append((right, (0.5 - share) * fx, (0.5 - share) * fy, (0.5 - share) * fz))
@@ -780,6 +918,7 @@ class Simulator:
         elif shape0.moving:  # the joints stopped: drop the last step's rates and accelerations
             shape0 = self._kin.evaluate(q.tolist())
             self._shape = shape0
+        self._update_ground_planes(s, shape0)
         heights = self._mass_heights(s, shape0)
         prm = self._prm
         low = self._lowest_per_hemi(heights)
@@ -828,6 +967,8 @@ class Simulator:
         ws = kern.ws
         moving = False
         begin = kern.out_begin
+        if self._terrain.steps:
+            self._update_ground_planes(self._s, self._current_shape())
         if not self._settled:
             if not self._cmd_static:
                 target, target_v = self._servo_target()
@@ -850,7 +991,7 @@ class Simulator:
             ground = kern.out_ground
             radius = shape0.radius_max
         prm = self._prm
-        if s[2] - radius > self._far_above_m:  # no thrust, legs nor contact
+        if self._far_above(s, radius):  # no thrust, legs nor contact
             prm.thrust = prm.contact = ()
         else:  # the decisions of step(), on the heights and candidates computed in C
             if not moving:
@@ -905,7 +1046,7 @@ class Simulator:
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
         thrust = self._thrust_terms(low, s)
-        legs = self._leg_terms(low, thrust, s, shape)
+        legs = self._leg_terms(low, thrust, s, shape, update=False)
         saved = prm.contact, prm.thrust
         prm.contact = ALL_MASSES if self.config.ground_contact else ()
         prm.thrust = thrust + legs
