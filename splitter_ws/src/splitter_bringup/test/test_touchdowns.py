@@ -12,6 +12,7 @@ from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.analysis.touchdowns import touchdown_summary, touchdowns
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel
+from splitter_model.terrain import Step, Terrain
 
 MODEL = RobotModel()
 DT = 0.005  # [s]
@@ -75,3 +76,19 @@ def test_the_gait_figure_marks_each_touchdown(tmp_path) -> None:
     assert [e.on_legs for e in events] == [False]
     path = plot_gait(series, tmp_path / "gait.png", "touchdowns", 196.1, events)
     assert path.stat().st_size > 10_000
+
+
+def test_tilts_are_measured_from_the_terrain_and_the_tether_on_a_step_is_reported() -> None:
+    series = _series(10.0, 0.0, 1.0)  # pitched 10 deg: body x points down towards +x
+    slope = Terrain(10.0, 180.0)  # rises towards -x: the robot lies along it
+    [level] = touchdowns(series, CONE_DEG, MODEL)
+    [sloped] = touchdowns(series, CONE_DEG, MODEL, terrain=slope)
+    assert level.tether_tilt_deg == pytest.approx(10.0)
+    assert sloped.tether_tilt_deg == pytest.approx(0.0, abs=1e-6)
+    assert sloped.legs_tilt_deg == pytest.approx(0.0, abs=1e-4)
+    # a 1.2 m step between the hemis: the tether (1 m up at the COM) crosses it
+    ridge = Terrain(0.0, 0.0, (Step(-0.5, 0.5, -5.0, 5.0, 1.2),))
+    flat = touchdown_summary(_series(0.0, 0.0, 1.0), CONE_DEG, MODEL)
+    crossed = touchdown_summary(_series(0.0, 0.0, 1.0), CONE_DEG, MODEL, ridge)
+    assert flat["tether_ground_contact_s"].value == 0.0
+    assert crossed["tether_ground_contact_s"].value == pytest.approx(1.0, abs=0.01)

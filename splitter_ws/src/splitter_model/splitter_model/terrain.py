@@ -156,6 +156,19 @@ class Terrain:
             return 0.0
         return self.base_height_m(x_m, y_m) + self.step_height_m(x_m, y_m)
 
+    def heights_m(self, xy_m: ArrayLike) -> NDArray[np.float64]:
+        """:meth:`height_m` of every point (rows x, y) [m], vectorised."""
+        xy = np.atleast_2d(np.asarray(xy_m, dtype=float))
+        x, y = xy[:, 0], xy[:, 1]
+        if self.flat:
+            return np.zeros(len(xy))
+        rx, ry = self._rise  # type: ignore[attr-defined]
+        step = np.zeros(len(xy))
+        for s in self.steps:
+            inside = (x >= s.x_min_m) & (x <= s.x_max_m) & (y >= s.y_min_m) & (y <= s.y_max_m)
+            step = np.where(inside, np.maximum(step, s.height_m), step)
+        return rx * x + ry * y + step
+
     def highest_within_m(self, x_m: float, y_m: float, radius_m: float) -> float:
         """An upper bound [m] of the ground's height within ``radius_m`` of (x, y)."""
         if self.flat:

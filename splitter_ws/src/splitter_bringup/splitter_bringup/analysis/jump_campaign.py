@@ -19,7 +19,14 @@ Draws. Draw ``i`` of a campaign with seed ``S`` has its own integer seed (that o
 3. the simulated robot: ``m_x, m_y, m_z`` each scaled uniform in ``1 +- mass_fraction``
    (so the inertia), a gyro noise uniform in ``[0, gyro_noise_rad_s]``, a gyro bias
    uniform in ``+-gyro_bias_rad_s`` per axis, a command latency uniform in
-   ``[0, command_latency_s]``, and the seed of the sensor noise.
+   ``[0, command_latency_s]``, and the seed of the sensor noise;
+4. the terrain (drawn last, so a draw's other numbers do not depend on it): a slope
+   uniform in ``[0, slope_deg]`` rising towards a uniform azimuth, and a step across
+   the path (the robot jumps along world +x): a raised plane of height uniform in
+   ``[0, step_height_m]`` beyond an edge at x uniform in ``STEP_EDGE_RANGE_M`` (before
+   the first landing, under it, between the hemis of a landing, after it). On a
+   slope the base scenario's initial pose and pushes are the ground frame's
+   (:func:`splitter_bringup.scenario.definition.pose_on_terrain`).
 
 The controllers know the nominal robot and fly on the flight estimator (issue 27);
 the scenario's other robot errors (effort, range, load-cell and accelerometer noise,
@@ -48,8 +55,8 @@ Failure modes, the first that applies, in this order:
 
 Statistics per variant: the success rate with its 95 % Wilson interval, the counts
 per failure mode, and the rate against each randomized factor
-(:func:`binned_success`). Terrain (slope, steps) is not randomized yet: the ground
-is the plane z = 0.
+(:func:`binned_success`). The time the tether lay on the terrain is reported per
+draw (``tether_ground_contact_s``), not judged.
 """
 
 from __future__ import annotations
@@ -69,11 +76,18 @@ from scipy.spatial.transform import Rotation
 from splitter_bringup.analysis.campaign import wilson_interval
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.analysis.summary import variant_metrics
-from splitter_bringup.scenario.definition import JumpSpec, Scenario
+from splitter_bringup.scenario.definition import JumpSpec, Scenario, pose_on_terrain
+from splitter_model.terrain import SLOPE_MAX_DEG, STEP_HEIGHT_MAX_M, Step, Terrain
 from splitter_sim.core.robot_errors import RobotErrors
 
 FORCE_LIMIT_N = 196.133  # [N] per hemi: 20 kg at 1 G, the limbs' dynamic limit (VII.C)
 CARTWHEEL_TILT_DEG = 45.0  # [deg] tether above this from the ground: end over end
+# [m] where a draw's step edge falls along the path: past the start's 3.4 m clearance
+# (scenario.definition.START_CLEARANCE_M plus the tether's half length), up to the
+# nominal second landing (~17 m on lunar_jumping)
+STEP_EDGE_RANGE_M = (4.0, 16.0)
+STEP_HALF_WIDTH_M = 50.0  # [m] the step spans the path sideways
+STEP_DEPTH_M = 100.0  # [m] and reaches beyond the run's end
 VARIANTS = ("mpc", "open_loop")
 
 SUCCESS = "success"
@@ -100,6 +114,8 @@ class JumpRanges:
     gyro_noise_rad_s: float = 0.004  # [rad/s] noise std drawn in [0, this]
     gyro_bias_rad_s: float = 0.005  # [rad/s] bias drawn in +- this per axis
     command_latency_s: float = 0.02  # [s] drawn in [0, this]
+    slope_deg: float = 10.0  # [deg] the ground's slope drawn in [0, this]
+    step_height_m: float = 0.2  # [m] a step across the path drawn in [0, this]
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -110,6 +126,12 @@ class JumpRanges:
                 raise ValueError(f"{name} must be < 1, got {getattr(self, name)!r}")
         if self.push_tilt_deg >= 90.0:
             raise ValueError(f"push_tilt_deg must be < 90, got {self.push_tilt_deg!r}")
+        if self.slope_deg > SLOPE_MAX_DEG:
+            raise ValueError(f"slope_deg must be <= {SLOPE_MAX_DEG}, got {self.slope_deg!r}")
+        if self.step_height_m > STEP_HEIGHT_MAX_M:
+            raise ValueError(
+                f"step_height_m must be <= {STEP_HEIGHT_MAX_M}, got {self.step_height_m!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -127,6 +149,22 @@ class JumpDraw:
     gyro_bias_rad_s: tuple[float, float, float]  # [rad/s] body frame
     command_latency_s: float  # [s]
     noise_seed: int
+    slope_deg: float = 0.0  # [deg]
+    slope_azimuth_deg: float = 0.0  # [deg] direction of the rise, from world x
+    step_height_m: float = 0.0  # [m] 0: no step
+    step_edge_m: float = math.inf  # [m] world x of the step's edge
+
+    @property
+    def terrain(self) -> Terrain:
+        """The draw's ground (module docstring)."""
+        steps = ()
+        if self.step_height_m > 0.0:
+            edge = self.step_edge_m
+            steps = (
+                Step(edge, edge + STEP_DEPTH_M, -STEP_HALF_WIDTH_M, STEP_HALF_WIDTH_M,
+                     self.step_height_m),
+            )  # fmt: skip
+        return Terrain(self.slope_deg, self.slope_azimuth_deg, steps)
 
     def factors(self) -> dict[str, float]:
         """The draw's randomized numbers as scalars (the CSV columns and the figures)."""
@@ -145,6 +183,8 @@ class JumpDraw:
             "gyro_noise_rad_s": self.gyro_noise_rad_s,
             "gyro_bias_max_rad_s": float(np.abs(self.gyro_bias_rad_s).max()),
             "command_latency_s": self.command_latency_s,
+            "slope_deg": self.slope_deg,
+            "step_height_m": self.step_height_m,
         }
 
 
@@ -171,6 +211,10 @@ def make_jump_draw(index: int, seed: int, jumps: int, ranges: JumpRanges) -> Jum
     bias = r.gyro_bias_rad_s * rng.uniform(-1.0, 1.0, 3) + 0.0
     latency = r.command_latency_s * float(rng.uniform(0.0, 1.0))
     noise_seed = int(rng.integers(0, 2**31 - 1))
+    slope = r.slope_deg * float(rng.uniform(0.0, 1.0))
+    slope_azimuth = 360.0 * float(rng.uniform(0.0, 1.0))
+    step_height = r.step_height_m * float(rng.uniform(0.0, 1.0))
+    step_edge = float(rng.uniform(*STEP_EDGE_RANGE_M))
     return JumpDraw(
         index=int(index),
         seed=int(seed),
@@ -183,6 +227,10 @@ def make_jump_draw(index: int, seed: int, jumps: int, ranges: JumpRanges) -> Jum
         gyro_bias_rad_s=(float(bias[0]), float(bias[1]), float(bias[2])),
         command_latency_s=latency,
         noise_seed=noise_seed,
+        slope_deg=slope,
+        slope_azimuth_deg=slope_azimuth,
+        step_height_m=step_height,
+        step_edge_m=step_edge,
     )
 
 
@@ -257,11 +305,45 @@ def robot_errors_for_jump_draw(base: RobotErrors, draw: JumpDraw) -> RobotErrors
 
 
 def scenario_for_jump_draw(base: Scenario, draw: JumpDraw) -> Scenario:
-    """``base`` (one variant) flown in the draw's world."""
+    """``base`` (one variant, on level ground) flown in the draw's world.
+
+    On the draw's terrain the base's initial pose and pushes are the ground frame's
+    (as a scenario with ``ground`` states them). ValueError when the draw has a
+    terrain and the base scenario one of its own.
+    """
+    terrain = draw.terrain
+    jumps = jumps_for_draw(base.jumps, draw)
+    if terrain.flat:
+        return replace(
+            base, jumps=jumps, robot_errors=robot_errors_for_jump_draw(base.robot_errors, draw)
+        )
+    if not base.terrain.flat:
+        raise ValueError(
+            f"scenario {base.name!r} has a ground of its own: run its campaign with "
+            "--slope 0 --step-height 0"
+        )
+    position, velocity, euler = pose_on_terrain(
+        terrain,
+        np.asarray(base.initial_position_m, dtype=float),
+        np.asarray(base.initial_velocity_m_s, dtype=float),
+        np.asarray(base.initial_orientation_euler_deg, dtype=float),
+    )
+    frame = terrain.ground_frame()
     return replace(
         base,
-        jumps=jumps_for_draw(base.jumps, draw),
+        jumps=tuple(
+            replace(
+                j,
+                force_n=tuple((frame @ np.asarray(j.force_n)).tolist()),
+                force_b_n=tuple((frame @ np.asarray(j.force_b_n)).tolist()),
+            )
+            for j in jumps
+        ),
         robot_errors=robot_errors_for_jump_draw(base.robot_errors, draw),
+        terrain=terrain,
+        initial_position_m=position,
+        initial_velocity_m_s=velocity,
+        initial_orientation_euler_deg=euler,
     )
 
 
@@ -279,6 +361,18 @@ def _overrides(base: Mapping[str, Any], other: Mapping[str, Any]) -> dict[str, A
     return out
 
 
+def ground_document(terrain: Terrain) -> dict[str, Any]:
+    """A scenario file's ``ground`` of ``terrain``."""
+    return {
+        "slope_deg": terrain.slope_deg,
+        "slope_azimuth_deg": terrain.slope_azimuth_deg,
+        "steps": [
+            {"x_m": [s.x_min_m, s.x_max_m], "y_m": [s.y_min_m, s.y_max_m], "height_m": s.height_m}
+            for s in terrain.steps
+        ],
+    }
+
+
 def jump_scenario_document(variants: Mapping[str, Scenario], draw: JumpDraw) -> dict[str, Any]:
     """A scenario file (YAML mapping) of the draw with every variant of ``variants`` (the
     first is the base): ``splitter run FILE`` flies the draw as the campaign did."""
@@ -287,6 +381,9 @@ def jump_scenario_document(variants: Mapping[str, Scenario], draw: JumpDraw) -> 
     doc: dict[str, Any] = copy.deepcopy(dict(first.raw))
     doc.pop("findings", None)
     doc["description"] = f"Campaign draw {draw.index} (seed {draw.seed}) of {first.name}."
+    if not flown.terrain.flat:  # the pushes as the ground frame's, as the file states them
+        doc["ground"] = ground_document(flown.terrain)
+        flown = replace(flown, jumps=jumps_for_draw(first.jumps, draw))
     doc["jumps"] = [
         {
             "time_s": j.time_s,
@@ -320,6 +417,7 @@ class LandingOutcome:
     touchdowns: int = 0
     touchdowns_on_legs: int = 0
     body_ground_contact_s: float = math.nan  # [s]
+    tether_ground_contact_s: float = math.nan  # [s] the tether on the terrain (reported)
     landed_at_s: float = math.nan  # [s] NaN: never LANDED
     max_tether_tilt_deg: float = math.nan  # [deg]
     peak_w_rad_s: float = math.nan  # [rad/s]
@@ -333,14 +431,22 @@ class LandingOutcome:
         return SUCCESS if self.success else str(self.failure_mode)
 
 
-def tether_tilt_deg(orientation_wxyz: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The tether axis (body x) above the ground plane [deg], per sample.
+def tether_tilt_deg(
+    orientation_wxyz: NDArray[np.float64],
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> NDArray[np.float64]:
+    """The tether axis (body x) above the ground plane of ``normal`` [deg], per sample.
 
-    The world z of body x is ``R[2, 0] = 2 (q_x q_z - q_w q_y)`` of the unit quaternion.
+    Body x in the world is the first column of R: ``(1 - 2 (q_y^2 + q_z^2),
+    2 (q_x q_y + q_w q_z), 2 (q_x q_z - q_w q_y))`` of the unit quaternion.
     """
     q = np.asarray(orientation_wxyz, dtype=float).reshape(-1, 4)
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    up = 2.0 * (q[:, 1] * q[:, 3] - q[:, 0] * q[:, 2])
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    up = 2.0 * (x * z - w * y)
+    if normal[0] != 0.0 or normal[1] != 0.0:
+        body_x = np.stack([1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), up], axis=1)
+        up = body_x @ np.asarray(normal, dtype=float)
     return np.degrees(np.arcsin(np.clip(np.abs(up), 0.0, 1.0)))
 
 
@@ -399,7 +505,8 @@ def classify_landing(series: RunSeries, scenario: Scenario, cone_deg: float) -> 
     on_legs = int(_value(metrics, "touchdowns_on_legs", 0.0))
     body_s = _value(metrics, "body_ground_contact_s", 0.0)
     landed_at = _value(metrics, "landed_at_s")
-    max_tilt = float(np.max(tether_tilt_deg(np.asarray(series.orientation_wxyz)), initial=0.0))
+    tilts = tether_tilt_deg(np.asarray(series.orientation_wxyz), scenario.terrain.normal)
+    max_tilt = float(np.max(tilts, initial=0.0))
     w = np.linalg.norm(np.asarray(series.angular_velocity_rad_s, dtype=float), axis=1)
     legs_tilts = [_value(metrics, f"touchdown_{k}_legs_tilt_deg") for k in range(1, touchdowns + 1)]
     td_w = [_value(metrics, f"touchdown_{k}_w_rad_s") for k in range(1, touchdowns + 1)]
@@ -430,6 +537,7 @@ def classify_landing(series: RunSeries, scenario: Scenario, cone_deg: float) -> 
         touchdowns=touchdowns,
         touchdowns_on_legs=on_legs,
         body_ground_contact_s=body_s,
+        tether_ground_contact_s=_value(metrics, "tether_ground_contact_s", 0.0),
         landed_at_s=landed_at,
         max_tether_tilt_deg=max_tilt,
         peak_w_rad_s=float(np.max(w, initial=0.0)),

@@ -32,7 +32,12 @@ def variant_metrics(series: RunSeries, scenario: Scenario) -> dict[str, Metric]:
         metrics = {
             **jumping_summary(series, scenario.jumps, scenario.paper),
             **gait_summary(series, len(scenario.jumps)),
-            **touchdown_summary(series, scenario.leg_cone_half_angle_deg, plant_model(scenario)),
+            **touchdown_summary(
+                series,
+                scenario.leg_cone_half_angle_deg,
+                plant_model(scenario),
+                scenario.terrain,
+            ),
             **metrics,
         }
         metrics.pop("max_horizontal_speed_m_s", None)

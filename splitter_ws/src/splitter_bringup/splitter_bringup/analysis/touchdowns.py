@@ -19,7 +19,11 @@ touchdown is the end of a flight (no hemi in contact for at least
   the flight that ends there (a launch's spin shows in flight 1).
 
 The whole run also reports how long any lumped mass was on the ground (a landing
-on the body, which the contact model makes hard).
+on the body, which the contact model makes hard) and how long the tether (the
+straight segment between the hemi bodies) lay on or in the terrain
+(``tether_ground_contact_s``: over a step, a ridge). Heights, tilts and normals are
+the terrain's (:class:`splitter_model.terrain.Terrain`: the distance to the ground a
+mass touches, angles from the ground's normal); level ground by default.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from splitter_bringup.analysis.metrics import Metric
 from splitter_bringup.analysis.series import RunSeries
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
+from splitter_model.terrain import FLAT, Terrain
 from splitter_sim.core.scene import SceneGeometry
 
 TOUCHDOWN_WINDOW_S = 0.5  # [s] after the first contact: impact, stagger, body contact
@@ -64,22 +69,44 @@ def _contact(series: RunSeries) -> NDArray[np.bool_] | None:
     return np.linalg.norm(np.asarray(force, dtype=float), axis=2) > STANCE_FORCE_N  # (n, 2)
 
 
-def lowest_mass_heights_m(series: RunSeries, model: RobotModel | None = None) -> NDArray:
-    """World height [m] of the lowest lumped mass at each sample (inf far above the ground).
+def lowest_mass_heights_m(
+    series: RunSeries, model: RobotModel | None = None, terrain: Terrain = FLAT
+) -> NDArray:
+    """Distance [m] of the lowest lumped mass to the ground at each sample (inf far above).
 
     Mass positions from the recorded joint positions and pose (the scene's geometry);
     samples whose centre of mass is more than the robot's reach above the ground are
     skipped.
     """
+    return ground_clearances_m(series, model, terrain)[0]
+
+
+def ground_clearances_m(
+    series: RunSeries, model: RobotModel | None = None, terrain: Terrain = FLAT
+) -> tuple[NDArray, NDArray]:
+    """Per sample: the lowest lumped mass's distance to the ground [m] and the tether's
+    (the segment between the hemi bodies; :meth:`Terrain.segment_clearance_m`), both
+    inf while the robot is far above the ground."""
     geometry = SceneGeometry(model)
     reach = math.hypot(geometry.model.radius_x_max_m, geometry.model.limb_radius_max_m)
-    out = np.full(len(series), np.inf)
-    for i in np.flatnonzero(series.position_m[:, 2] <= reach + 0.5):
+    lowest = np.full(len(series), np.inf)
+    tether = np.full(len(series), np.inf)
+    position = series.position_m
+    under = terrain.heights_m(position[:, :2]) if len(series) else np.zeros(0)
+    slack = reach * math.tan(math.radians(terrain.slope_deg)) + max(
+        (s.height_m for s in terrain.steps), default=0.0
+    )
+    for i in np.flatnonzero(position[:, 2] - under <= reach + 0.5 + slack):
         world = geometry.world_positions(
-            series.position_m[i], series.orientation_wxyz[i], series.joint_position[i]
+            position[i], series.orientation_wxyz[i], series.joint_position[i]
         )
-        out[i] = float(world[:, 2].min())
-    return out
+        if terrain.flat:
+            lowest[i] = float(world[:, 2].min())
+            tether[i] = float(min(world[0, 2], world[5, 2]))
+        else:
+            lowest[i] = float(terrain.signed_distance_m(world).min())
+            tether[i] = terrain.segment_clearance_m(world[0], world[5])
+    return lowest, tether
 
 
 def touchdowns(
@@ -87,6 +114,7 @@ def touchdowns(
     cone_half_angle_deg: float,
     model: RobotModel | None = None,
     lowest_m: NDArray | None = None,
+    terrain: Terrain = FLAT,
 ) -> list[Touchdown]:
     """Every touchdown of ``series`` (module docstring); ``lowest_m``: the series'
     :func:`lowest_mass_heights_m` when already computed."""
@@ -95,7 +123,8 @@ def touchdowns(
         return []
     t = series.t_s
     any_contact = contact.any(axis=1)
-    lowest = lowest_mass_heights_m(series, model) if lowest_m is None else lowest_m
+    lowest = lowest_mass_heights_m(series, model, terrain) if lowest_m is None else lowest_m
+    normal = np.asarray(terrain.normal)
     force = np.linalg.norm(np.asarray(series.extras["contact_force_n"], dtype=float), axis=2)
     out = []
     airborne_since = None if any_contact[0] else 0
@@ -118,11 +147,12 @@ def touchdowns(
         ]
         stagger = abs(first[0] - first[1]) if None not in first else math.nan
         rot = rotation_matrix(series.orientation_wxyz[i])
-        legs_tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(rot[2, 2])))))
+        along = normal @ rot  # the ground normal's components on body x, y, z
+        legs_tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(along[2])))))
         out.append(
             Touchdown(
                 t_s=float(t[i]),
-                tether_tilt_deg=math.degrees(math.asin(min(1.0, abs(float(rot[2, 0]))))),
+                tether_tilt_deg=math.degrees(math.asin(min(1.0, abs(float(along[0]))))),
                 legs_tilt_deg=legs_tilt,
                 stagger_s=stagger,
                 impact_n=(float(force[window, 0].max()), float(force[window, 1].max())),
@@ -138,13 +168,17 @@ def touchdowns(
 
 
 def touchdown_summary(
-    series: RunSeries, cone_half_angle_deg: float, model: RobotModel | None = None
+    series: RunSeries,
+    cone_half_angle_deg: float,
+    model: RobotModel | None = None,
+    terrain: Terrain = FLAT,
 ) -> dict[str, Metric]:
-    """The touchdowns and the time on the body, as summary metrics."""
+    """The touchdowns, the time on the body and the tether's time on the terrain, as
+    summary metrics."""
     if "contact_force_n" not in series.extras or len(series) == 0:
         return {}
-    lowest = lowest_mass_heights_m(series, model)
-    events = touchdowns(series, cone_half_angle_deg, model, lowest)
+    lowest, tether = ground_clearances_m(series, model, terrain)
+    events = touchdowns(series, cone_half_angle_deg, model, lowest, terrain)
     out = {
         "touchdowns": Metric(float(len(events)), "-", "ends of a flight (first contact)"),
         "touchdowns_on_legs": Metric(
@@ -159,6 +193,11 @@ def touchdown_summary(
         float(dt[lowest < -BODY_CONTACT_DEPTH_M].sum()),
         "s",
         "time any lumped mass (body or limb tip) is on the ground: a landing on the body",
+    )
+    out["tether_ground_contact_s"] = Metric(
+        float(dt[tether < 0.0].sum()),
+        "s",
+        "time the tether (between the hemi bodies) lies on or in the terrain",
     )
     for k, e in enumerate(events, start=1):
         rows = (

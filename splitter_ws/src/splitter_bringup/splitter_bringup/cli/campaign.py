@@ -204,6 +204,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="F",
         help=f"the launch's couple within 1 +- F (default {JumpRanges.spin_fraction})",
     )
+    jumping.add_argument(
+        "--slope",
+        type=float,
+        default=JumpRanges.slope_deg,
+        metavar="DEG",
+        help=f"the ground's slope within [0, DEG], any direction (default {JumpRanges.slope_deg})",
+    )
+    jumping.add_argument(
+        "--step-height",
+        type=float,
+        default=JumpRanges.step_height_m,
+        metavar="M",
+        help="a step across the path within [0, M] high, its edge anywhere along the path "
+        f"(default {JumpRanges.step_height_m})",
+    )
     parser.add_argument(
         "--replay",
         type=int,

@@ -61,6 +61,8 @@ def ranges_from_args(args: argparse.Namespace) -> JumpRanges:
         gyro_noise_rad_s=chosen(args.imu_noise, defaults.gyro_noise_rad_s),
         gyro_bias_rad_s=chosen(args.imu_bias, defaults.gyro_bias_rad_s),
         command_latency_s=chosen(args.command_latency, defaults.command_latency_s),
+        slope_deg=float(args.slope),
+        step_height_m=float(args.step_height),
     )
 
 
@@ -88,6 +90,7 @@ def replay_command(args: argparse.Namespace, out: Path, seed: int) -> str:
     words += ["--imu-noise", repr(ranges.gyro_noise_rad_s)]
     words += ["--imu-bias", repr(ranges.gyro_bias_rad_s)]
     words += ["--command-latency", repr(ranges.command_latency_s)]
+    words += ["--slope", repr(ranges.slope_deg), "--step-height", repr(ranges.step_height_m)]
     words += ["--out", str(out)]
     return shlex.join(words)
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -27,8 +27,10 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from splitter_model.model import gravity_from_name
+from splitter_model.terrain import FLAT, Step, Terrain
 from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
@@ -140,6 +142,9 @@ class Scenario:
     compliant_legs: bool = False  # stance legs under impedance control (splitter_sim.core.legs)
     # [deg] the legs' workspace cone: belly normal to ground normal (SimConfig's field)
     leg_cone_half_angle_deg: float = 60.0
+    # the ground (splitter_model.terrain): level z = 0 unless the scenario's ``ground``
+    terrain: Terrain = FLAT
+    friction_coefficient: float = 0.8  # [-] of the ground (SimConfig's field)
     # how the simulated robot differs from the nominal one its controllers assume
     # (masses, gyro noise and bias, actuator lag); default: not at all
     robot_errors: RobotErrors = field(default_factory=RobotErrors)
@@ -172,14 +177,16 @@ def _deep_merge(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, 
     return out
 
 
-def _vector(data: Mapping[str, Any], key: str, default: list[float] | None = None) -> NDArray:
+def _vector(
+    data: Mapping[str, Any], key: str, default: list[float] | None = None, size: int = 3
+) -> NDArray:
     value = data.get(key, default)
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ScenarioError(f"{key}: expected 3 numbers, got {value!r}") from exc
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ScenarioError(f"{key}: expected 3 finite numbers, got {value!r}")
+        raise ScenarioError(f"{key}: expected {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ScenarioError(f"{key}: expected {size} finite numbers, got {value!r}")
     return arr
 
 
@@ -374,6 +381,7 @@ SCENARIO_FIELDS = (
     "ground_contact",
     "compliant_legs",
     "leg_cone_half_angle_deg",
+    "ground",
     "initial",
     "controller",
     "jumps",
@@ -406,6 +414,72 @@ CONTROLLER_FIELDS = (
     "recovery_spin_rad_s",
     "recovery_momentum_ratio_max",
 )
+
+
+GROUND_FIELDS = ("slope_deg", "slope_azimuth_deg", "friction_coefficient", "steps")
+STEP_FIELDS = ("x_m", "y_m", "height_m")
+# [m] the limbs' reach beyond the hemi bodies: a step within the tether's half length
+# plus this of the start would be under the standing robot
+START_CLEARANCE_M = 0.6
+
+
+def _ground(data: Any) -> tuple[Terrain, float]:
+    """The scenario's ``ground``: (terrain, friction coefficient); errors name the field."""
+    ground = _known_fields(data, "ground", GROUND_FIELDS)
+    friction = _finite(ground, "friction_coefficient", SimConfig.friction_coefficient)
+    if not 0.0 <= friction <= 10.0:
+        raise ScenarioError(f"ground.friction_coefficient: must be in [0, 10], got {friction}")
+    raw_steps = ground.get("steps") or []
+    if not isinstance(raw_steps, list):
+        raise ScenarioError(f"ground.steps: expected a list, got {raw_steps!r}")
+    steps = []
+    for i, raw in enumerate(raw_steps):
+        where = f"ground.steps[{i}]"
+        step = _known_fields(raw, where, STEP_FIELDS)
+        try:
+            x = _vector(step, "x_m", None, 2)
+            y = _vector(step, "y_m", None, 2)
+            height = _finite(step, "height_m", math.nan)
+            steps.append(Step(float(x[0]), float(x[1]), float(y[0]), float(y[1]), height))
+        except (ScenarioError, ValueError) as exc:
+            raise ScenarioError(f"{where}.{exc}") from exc
+    try:
+        slope = _finite(ground, "slope_deg", 0.0)
+        azimuth = _finite(ground, "slope_azimuth_deg", 0.0)
+        terrain = Terrain(slope, azimuth, tuple(steps))
+    except (ScenarioError, ValueError) as exc:
+        raise ScenarioError(f"ground.{exc}") from exc
+    return terrain, friction
+
+
+def _clear_start(terrain: Terrain, position_m: NDArray, radii_m: NDArray) -> None:
+    """A step under the standing robot (within the tether's half length plus the limbs'
+    reach of its start) is an error naming it."""
+    reach = float(radii_m[0]) + START_CLEARANCE_M
+    for i, step in enumerate(terrain.steps):
+        if step.footprint_distance_m(float(position_m[0]), float(position_m[1])) < reach:
+            raise ScenarioError(
+                f"ground.steps[{i}]: overlaps the start (within {reach:.2f} m of the initial "
+                f"position {position_m[:2].tolist()}: the tether's half length plus the limbs)"
+            )
+
+
+def pose_on_terrain(
+    terrain: Terrain, position_m: NDArray, velocity_m_s: NDArray, euler_deg: NDArray
+) -> tuple[NDArray, NDArray, NDArray]:
+    """The initial pose given in the ground's frame at the start, in the world.
+
+    ``position_m``: x, y the world's, z the height along the ground's normal above the
+    base plane there; the velocity and the orientation (extrinsic xyz Euler angles)
+    are the ground frame's (:meth:`Terrain.ground_frame`). On level ground: unchanged.
+    """
+    if terrain.slope_deg == 0.0:
+        return position_m, velocity_m_s, euler_deg
+    frame = terrain.ground_frame()
+    x, y, z = (float(v) for v in position_m)
+    world = np.array([x, y, terrain.base_height_m(x, y)]) + z * np.asarray(terrain.normal)
+    rotation = Rotation.from_matrix(frame) * Rotation.from_euler("xyz", euler_deg, degrees=True)
+    return world, frame @ velocity_m_s, rotation.as_euler("xyz", degrees=True)
 
 
 def _known_fields(data: Any, where: str, known: tuple[str, ...]) -> Mapping[str, Any]:
@@ -460,6 +534,25 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
     if controller.attitude_reference not in ATTITUDE_REFERENCE_MODES:
         raise ScenarioError(f"controller.attitude_reference: use one of {ATTITUDE_REFERENCE_MODES}")
     jumps = _jumps(d.get("jumps"))
+    terrain, friction = _ground(d.get("ground"))
+    radii = _vector(initial, "radii_m", [2.8, 0.2, 0.2])
+    position, velocity, euler = pose_on_terrain(
+        terrain,
+        _vector(initial, "position_m", [0.0, 0.0, 0.0]),
+        _vector(initial, "velocity_m_s", [0.0] * 3),
+        _vector(initial, "orientation_euler_deg", [0.0] * 3),
+    )
+    _clear_start(terrain, position, radii)
+    if terrain.slope_deg != 0.0:  # the pushes as the ground frame states them
+        frame = terrain.ground_frame()
+        jumps = [
+            replace(
+                j,
+                force_n=tuple((frame @ np.asarray(j.force_n)).tolist()),
+                force_b_n=tuple((frame @ np.asarray(j.force_b_n)).tolist()),
+            )
+            for j in jumps
+        ]
     return Scenario(
         name=str(d.get("name", stem)),
         description=str(d.get("description", "")),
@@ -468,15 +561,17 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         gravity_m_s2=gravity,
         sim_dt_s=_positive(d, "sim_dt_s", 0.005),
         initial_angular_velocity_rad_s=_vector(initial, "angular_velocity_rad_s", [0.0] * 3),
-        initial_orientation_euler_deg=_vector(initial, "orientation_euler_deg", [0.0] * 3),
-        initial_position_m=_vector(initial, "position_m", [0.0, 0.0, 0.0]),
-        initial_velocity_m_s=_vector(initial, "velocity_m_s", [0.0] * 3),
-        initial_radii_m=_vector(initial, "radii_m", [2.8, 0.2, 0.2]),
+        initial_orientation_euler_deg=euler,
+        initial_position_m=position,
+        initial_velocity_m_s=velocity,
+        initial_radii_m=radii,
         controller=controller,
         jumps=tuple(jumps),
         ground_contact=bool(d.get("ground_contact", False)),
         compliant_legs=bool(d.get("compliant_legs", False)),
         leg_cone_half_angle_deg=_leg_cone(d),
+        terrain=terrain,
+        friction_coefficient=friction,
         robot_errors=_robot_errors(d.get("robot_errors")),
         estimator=_estimator(d.get("estimator")),
         paper=dict(d.get("paper", {}) or {}),

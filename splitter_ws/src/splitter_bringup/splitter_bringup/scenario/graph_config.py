@@ -112,12 +112,24 @@ def simulator_parameters(
         "ground_contact": bool(scenario.ground_contact),
         "compliant_legs": bool(scenario.compliant_legs),
         "leg_cone_half_angle_deg": float(scenario.leg_cone_half_angle_deg),
+        **ground_parameters(scenario),
+        "friction_coefficient": float(scenario.friction_coefficient),
         "initial_position_m": _floats(scenario.initial_position_m),
         "initial_velocity_m_s": _floats(scenario.initial_velocity_m_s),
         "initial_orientation_euler_deg": _floats(scenario.initial_orientation_euler_deg),
         "initial_angular_velocity_rad_s": _floats(scenario.initial_angular_velocity_rad_s),
         "initial_radii_m": _floats(scenario.initial_radii_m),
         **robot_error_parameters(scenario),
+    }
+
+
+def ground_parameters(scenario: Scenario) -> dict:
+    """The ground's parameters (simulator, gait manager): ``splitter_model.terrain``."""
+    terrain = scenario.terrain
+    return {
+        "ground_slope_deg": float(terrain.slope_deg),
+        "ground_slope_azimuth_deg": float(terrain.slope_azimuth_deg),
+        "ground_steps_m": list(terrain.steps_flat()),
     }
 
 

@@ -45,6 +45,10 @@ def sim_config(scenario: Scenario) -> SimConfig:
         ground_contact=bool(scenario.ground_contact),
         compliant_legs=bool(scenario.compliant_legs),
         leg_cone_half_angle_deg=float(scenario.leg_cone_half_angle_deg),
+        friction_coefficient=float(scenario.friction_coefficient),
+        ground_slope_deg=float(scenario.terrain.slope_deg),
+        ground_slope_azimuth_deg=float(scenario.terrain.slope_azimuth_deg),
+        ground_steps_m=scenario.terrain.steps_flat(),
     )
 
 

@@ -1,0 +1,117 @@
+"""The scenario language's ground: slope, friction, steps; each bad field refused by name,
+the initial pose and the pushes stated in the ground's frame, the campaign's terrains."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from splitter_bringup.analysis.jump_campaign import (
+    JumpRanges,
+    make_jump_draw,
+    scenario_for_jump_draw,
+    tether_tilt_deg,
+)
+from splitter_bringup.scenario.definition import ScenarioError, load_scenario
+from splitter_bringup.scenario.graph_config import simulator_parameters
+from splitter_bringup.scenario.simulation import sim_config
+from splitter_model.terrain import Step, Terrain
+
+HEADER = (
+    "duration_s: 1.0\ngravity: moon\nground_contact: true\ncompliant_legs: true\n"
+    "initial: {position_m: [0, 0, 0.3]}\n"
+    "jumps: [{time_s: 0, force_n: [160, 0, 320], duration_s: 0.6}]\n"
+)
+
+
+def _scenario(tmp_path: Path, ground: str) -> Path:
+    path = tmp_path / "ground.yaml"
+    path.write_text(HEADER + f"ground: {ground}\n")
+    return path
+
+
+def test_a_ground_reaches_the_simulator_in_both_backends(tmp_path: Path) -> None:
+    scenario = load_scenario(
+        _scenario(
+            tmp_path,
+            "{slope_deg: 5, slope_azimuth_deg: 90, friction_coefficient: 0.5, "
+            "steps: [{x_m: [5, 6], y_m: [-2, 2], height_m: 0.15}]}",
+        )
+    )
+    expected = Terrain(5.0, 90.0, (Step(5.0, 6.0, -2.0, 2.0, 0.15),))
+    assert scenario.terrain == expected
+    config = sim_config(scenario)
+    assert config.terrain == expected
+    assert config.friction_coefficient == 0.5
+    params = simulator_parameters(scenario, real_time=False, rate_factor=1.0)
+    assert params["ground_slope_deg"] == 5.0
+    assert params["ground_steps_m"] == [5.0, 6.0, -2.0, 2.0, 0.15]
+    assert params["friction_coefficient"] == 0.5
+
+
+def test_the_initial_pose_and_the_pushes_are_the_ground_frames(tmp_path: Path) -> None:
+    scenario = load_scenario(_scenario(tmp_path, "{slope_deg: 10}"))
+    terrain = scenario.terrain
+    frame = terrain.ground_frame()
+    # 0.3 m above the base plane along its normal, aligned with it
+    np.testing.assert_allclose(scenario.initial_position_m, 0.3 * np.array(terrain.normal))
+    rotation = Rotation.from_euler("xyz", scenario.initial_orientation_euler_deg, degrees=True)
+    np.testing.assert_allclose(rotation.as_matrix(), frame, atol=1e-12)
+    np.testing.assert_allclose(scenario.jumps[0].force_n, frame @ [160.0, 0.0, 320.0])
+
+
+@pytest.mark.parametrize(
+    ("ground", "field"),
+    [
+        ("{slope_deg: 90}", r"ground\.slope_deg"),
+        ("{slope_deg: 95}", r"ground\.slope_deg"),
+        ("{slope_deg: .nan}", r"ground\.slope_deg"),
+        ("{friction_coefficient: -0.1}", r"ground\.friction_coefficient"),
+        ("{slope: 3}", r"ground\.slope"),
+        ("{steps: [{x_m: [5, 6], y_m: [-2, 2], height_m: .nan}]}", r"ground\.steps\[0\]\.height_m"),
+        ("{steps: [{x_m: [6, 5], y_m: [-2, 2], height_m: 0.1}]}", r"ground\.steps\[0\]\.x_m"),
+        ("{steps: [{x_m: [5, 6], y_m: [-2, 2], high: 0.1}]}", r"ground\.steps\[0\]\.high"),
+        # under the standing robot (the tether's half length plus the limbs: 3.4 m)
+        ("{steps: [{x_m: [2, 6], y_m: [-2, 2], height_m: 0.1}]}", r"ground\.steps\[0\].*start"),
+    ],
+)
+def test_a_bad_ground_is_refused_naming_its_field(tmp_path: Path, ground: str, field: str) -> None:
+    with pytest.raises(ScenarioError, match=field):
+        load_scenario(_scenario(tmp_path, ground))
+
+
+def test_a_campaign_draw_flies_its_terrain_from_its_own_seed() -> None:
+    base = load_scenario("lunar_jumping", "mpc")
+    ranges = JumpRanges()
+    draws = [make_jump_draw(i, 1000 + i, len(base.jumps), ranges) for i in range(200)]
+    slopes = np.array([d.slope_deg for d in draws])
+    heights = np.array([d.step_height_m for d in draws])
+    assert 0.0 <= slopes.min() and slopes.max() <= 10.0 and slopes.std() > 2.0
+    assert 0.0 <= heights.min() and heights.max() <= 0.2 and heights.std() > 0.04
+    draw = draws[0]
+    assert make_jump_draw(0, 1000, len(base.jumps), ranges) == draw  # replayable
+    flown = scenario_for_jump_draw(base, draw)
+    assert flown.terrain == draw.terrain
+    assert flown.terrain.steps[0].x_min_m == draw.step_edge_m
+    # the pushes are the ground frame's: the same angle to the ground as on level ground
+    level = scenario_for_jump_draw(
+        base, make_jump_draw(0, 1000, 2, JumpRanges(slope_deg=0.0, step_height_m=0.0))
+    )
+    normal = np.array(flown.terrain.normal)
+    for tilted, flat in zip(flown.jumps, level.jumps, strict=True):
+        assert np.dot(tilted.force_n, normal) == pytest.approx(flat.force_n[2])
+    # no terrain drawn: the level world
+    assert JumpRanges(slope_deg=0.0, step_height_m=0.0) and level.terrain.flat
+
+
+def test_the_tether_tilt_is_measured_from_the_ground() -> None:
+    terrain = Terrain(10.0, 0.0)
+    xyzw = Rotation.from_matrix(terrain.ground_frame()).as_quat()
+    aligned = np.array([[xyzw[3], *xyzw[:3]]])
+    assert tether_tilt_deg(aligned)[0] == pytest.approx(10.0)  # from the level plane
+    assert tether_tilt_deg(aligned, terrain.normal)[0] == pytest.approx(0.0, abs=1e-9)
+    assert math.isfinite(float(tether_tilt_deg(aligned, terrain.normal)[0]))

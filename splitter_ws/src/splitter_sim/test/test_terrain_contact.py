@@ -1,0 +1,145 @@
+"""Contact with a terrain (splitter_model.terrain): slopes against closed forms, steps.
+
+A robot standing on its lumped masses on a slope of angle ``theta`` with friction
+``mu`` stays (``tan theta < mu``; the regularised friction creeps at most mm/s) or
+slides with the block-on-an-incline acceleration ``g (sin theta - mu cos theta)``
+down the slope (the model's linear damping takes ~0.5 %). On its compliant legs,
+planted feet hold it where the friction cone allows. Steps hold a mass on their top
+and stop one at their walls; the compiled kernels and the pure-Python path agree.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from splitter_model.model import RobotModel
+from splitter_model.terrain import Terrain
+from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
+
+MODEL = RobotModel()
+G_MOON = 1.62  # [m/s^2]
+DT = 0.005  # [s]
+STEP_FLAT = (1.5, 4.0, -1.0, 1.0, 0.2)  # [m] under hemi a's side
+
+
+def _standing(config: SimConfig, lift_m: float, compiled: bool = True) -> Simulator:
+    """A robot aligned with the ground's base plane, its lowest mass ``lift_m`` above it."""
+    terrain = config.terrain
+    wxyz = (1.0, 0.0, 0.0, 0.0)
+    if terrain.slope_deg:
+        xyzw = Rotation.from_matrix(terrain.ground_frame()).as_quat()
+        wxyz = (xyzw[3], *xyzw[:3])
+    probe = Simulator(MODEL, config, InitialState(position_m=(0, 0, 10.0), orientation_wxyz=wxyz))
+    normal = np.array(terrain.normal)
+    lowest = float(((probe.state().mass_positions_world_m - (0, 0, 10.0)) @ normal).min())
+    start = normal * (lift_m - lowest)
+    return Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=tuple(start), orientation_wxyz=wxyz),
+        compiled=compiled,
+    )
+
+
+def _run(sim: Simulator, seconds: float) -> list:
+    states = []
+    for _ in range(round(seconds / DT)):
+        sim.step()
+        states.append(sim.state())
+    return states
+
+
+@pytest.mark.parametrize(("slope_deg", "mu"), [(20.0, 0.2), (20.0, 0.0), (10.0, 0.1)])
+def test_a_robot_on_its_masses_slides_down_a_slope_as_a_block(slope_deg: float, mu: float) -> None:
+    config = SimConfig(gravity_m_s2=G_MOON, friction_coefficient=mu, ground_slope_deg=slope_deg)
+    states = _run(_standing(config, 0.001), 2.0)
+    v = np.array([s.velocity_m_s for s in states])
+    acceleration = (v[-1] - v[len(v) // 2]) / 1.0  # [m/s^2] over the last second
+    theta = math.radians(slope_deg)
+    down = np.array([-math.cos(theta), 0.0, -math.sin(theta)])
+    expected = G_MOON * (math.sin(theta) - mu * math.cos(theta))
+    assert float(acceleration @ down) == pytest.approx(expected, rel=0.01)
+    assert np.linalg.norm(acceleration - (acceleration @ down) * down) < 0.01 * expected
+
+
+def test_a_robot_on_its_masses_stays_on_a_slope_its_friction_holds() -> None:
+    config = SimConfig(gravity_m_s2=G_MOON, friction_coefficient=0.8, ground_slope_deg=10.0)
+    states = _run(_standing(config, 0.001), 2.0)
+    assert np.linalg.norm(states[-1].velocity_m_s) < 0.005  # [m/s] creep of the regularisation
+
+
+@pytest.mark.parametrize("slope_deg", [5.0, 15.0])
+def test_planted_feet_hold_a_robot_on_a_slope(slope_deg: float) -> None:
+    config = SimConfig(gravity_m_s2=G_MOON, compliant_legs=True, ground_slope_deg=slope_deg)
+    states = _run(_standing(config, 0.3), 4.0)
+    terrain = config.terrain
+    lowest = min(float(terrain.signed_distance_m(s.mass_positions_world_m).min()) for s in states)
+    assert lowest > 0.1  # [m] on its legs throughout
+    # without sticking feet the hip damper alone lets it creep at m g sin / c_t: 0.06-0.19 m/s
+    assert abs(float(states[-1].velocity_m_s[0])) < 0.01
+    travel = np.linalg.norm(states[-1].position_m[:2] - states[0].position_m[:2])
+    assert travel < 0.05  # [m] (creeping: 0.2-0.8 m in these 4 s)
+    legs = float(np.linalg.norm(states[-1].leg_force_n, axis=1).sum())
+    assert legs == pytest.approx(MODEL.total_mass_kg * G_MOON, rel=0.05)
+
+
+def test_without_sticking_feet_the_robot_creeps_down_the_slope() -> None:
+    config = SimConfig(
+        gravity_m_s2=G_MOON, compliant_legs=True, ground_slope_deg=10.0, leg_hold_stiffness_n_m=0.0
+    )
+    states = _run(_standing(config, 0.3), 4.0)
+    assert float(states[-1].velocity_m_s[0]) < -0.05  # [m/s] downhill (-x)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_robot_dropped_across_a_step_rests_on_its_top_and_the_ground(compiled: bool) -> None:
+    config = SimConfig(gravity_m_s2=G_MOON, ground_steps_m=STEP_FLAT)
+    states = _run(_standing(config, 0.3, compiled), 3.0)
+    end = states[-1]
+    z = end.mass_positions_world_m[:, 2]
+    assert np.linalg.norm(end.velocity_m_s) < 1e-3
+    assert float(z[:5].min()) == pytest.approx(0.2, abs=1e-3)  # hemi a on the step's top
+    assert float(z[5:].min()) == pytest.approx(0.0, abs=1e-3)  # hemi b on the ground
+
+
+def test_compiled_and_python_agree_on_a_sloped_terrain_with_a_step() -> None:
+    config = SimConfig(
+        gravity_m_s2=G_MOON,
+        compliant_legs=True,
+        ground_slope_deg=8.0,
+        ground_slope_azimuth_deg=20.0,
+        ground_steps_m=STEP_FLAT,
+    )
+    a = _run(_standing(config, 0.5, True), 1.5)
+    b = _run(_standing(config, 0.5, False), 1.5)
+    np.testing.assert_allclose(a[-1].position_m, b[-1].position_m, atol=1e-9)
+    np.testing.assert_allclose(a[-1].contact_force_n, b[-1].contact_force_n, atol=1e-6)
+
+
+def test_a_sliding_robot_is_stopped_by_a_step_wall() -> None:
+    config = SimConfig(
+        gravity_m_s2=G_MOON, friction_coefficient=0.0, ground_steps_m=(3.5, 5.0, -1, 1, 0.3)
+    )
+    probe = Simulator(MODEL, config, InitialState(position_m=(0, 0, 10.0)))
+    lowest = float(probe.state().mass_positions_world_m[:, 2].min()) - 10.0
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=(0.0, 0.0, 0.0005 - lowest), velocity_m_s=(0.5, 0, 0)),
+    )
+    states = _run(sim, 4.0)
+    reach = max(float(s.mass_positions_world_m[:, 0].max()) for s in states)
+    assert reach < 3.5 + 0.02  # [m] it never went more than 2 cm into the wall
+    assert float(states[-1].velocity_m_s[0]) < 0.0  # it bounced back (no friction)
+
+
+def test_level_terrain_parameters_give_the_level_ground_exactly() -> None:
+    a = _run(_standing(SimConfig(gravity_m_s2=G_MOON, compliant_legs=True), 0.3), 0.5)
+    config = SimConfig(gravity_m_s2=G_MOON, compliant_legs=True, ground_slope_azimuth_deg=45.0)
+    assert config.terrain == Terrain(0.0, 45.0)
+    b = _run(_standing(config, 0.3), 0.5)
+    np.testing.assert_array_equal(a[-1].position_m, b[-1].position_m)
