@@ -7,7 +7,10 @@
 * :func:`scene_markers`: ``/splitter/markers`` (``visualization_msgs/MarkerArray``,
   world frame): 10 mass spheres (ns ``splitter_masses``, id = mass index), the
   tether (``splitter_tether``) and limb lines (``splitter_limbs``), and the scene's
-  arrows (``splitter_arrows``: body axes, angular momentum, contact forces).
+  arrows (``splitter_arrows``: body axes, angular momentum, contact forces) and,
+  unless level, the ground (``splitter_ground``: id 0 the base plane, a thin slab
+  about the robot tilted with the slope; id ``1 + i`` step ``i``'s box;
+  :func:`splitter_sim.core.scene.ground_boxes`).
 * :func:`masses_to_msg` / :func:`masses_from_msg`: ``/splitter/scene/masses``
   (``geometry_msgs/PoseArray``, world frame): the ten lumped masses in index
   order, each oriented as the base frame. With the odometry, the true inertia and
@@ -34,7 +37,7 @@ from splitter_model.sensors import (
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MessageValidationError
-from splitter_sim.core.scene import BODY_INDICES, N_MASSES, Scene
+from splitter_sim.core.scene import BODY_INDICES, N_MASSES, Box, Scene, ground_boxes
 from splitter_sim.core.simulator import SimState
 from splitter_sim.core.tick import SensorReadings
 
@@ -45,6 +48,7 @@ HEMI_RGBA = ((0.9, 0.4, 0.1, 1.0), (0.1, 0.5, 0.9, 1.0))  # hemi a, hemi b
 TETHER_WIDTH_M = 0.02  # [m] line width
 LIMB_WIDTH_M = 0.03  # [m] line width
 ARROW_SCALE_M = (0.03, 0.06, 0.1)  # [m] shaft, head width, head length
+GROUND_NS = "splitter_ground"  # id 0: the base plane, 1 + i: step i
 
 
 def _point(p: Sequence[float]) -> Point:
@@ -91,7 +95,22 @@ def scene_markers(scene: Scene) -> MarkerArray:
         m.scale.x, m.scale.y, m.scale.z = ARROW_SCALE_M
         m.color.r, m.color.g, m.color.b, m.color.a = arrow.color
         out.markers.append(m)
+    if scene.ground is not None:
+        for i, box in enumerate(ground_boxes(scene.ground, scene.position_m)):
+            out.markers.append(box_marker(stamp, GROUND_NS, i, box))
     return out
+
+
+def box_marker(stamp: object, ns: str, marker_id: int, box: Box) -> Marker:
+    """A ``Marker.CUBE`` of ``box`` (world frame)."""
+    m = _marker(stamp, ns, marker_id, Marker.CUBE)
+    m.text = box.name
+    m.pose.position = _point(box.centre_m)
+    o = m.pose.orientation
+    o.w, o.x, o.y, o.z = (float(v) for v in box.orientation_wxyz)
+    m.scale.x, m.scale.y, m.scale.z = (float(v) for v in box.size_m)
+    m.color.r, m.color.g, m.color.b, m.color.a = box.color
+    return m
 
 
 def masses_to_msg(scene: Scene) -> PoseArray:

@@ -7,7 +7,7 @@ Each frame carries the scene (:class:`splitter_sim.core.scene.Scene`, built by
 the same :func:`~splitter_sim.core.scene.scene_from_pose` as the simulator's:
 the ten masses from the simulator's geometry at the recorded joint positions and
 odometry pose, the angular momentum, the contact forces when known, the ground
-when there is gravity) and a caption with time, gait phase and ``|w|``.
+(the run's terrain) when there is gravity) and a caption with time, gait phase and ``|w|``.
 The drawing lives in :mod:`splitter_bringup.figures.animation`.
 """
 
@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_model.model import RobotModel
+from splitter_model.terrain import FLAT, Terrain
 from splitter_sim.core.scene import Ground, Scene, SceneGeometry, scene_from_pose
 
 DEFAULT_FPS = 10.0  # [1/s] frames per second of `splitter run`'s animations
@@ -79,15 +80,19 @@ def flight_frames(
     fps: float = DEFAULT_FPS,
     contact_forces_n: ArrayLike | None = None,
     model: RobotModel | None = None,
+    terrain: Terrain = FLAT,
 ) -> FlightFrames:
-    """Frames of ``series`` at ``fps``; ``contact_forces_n`` (n_samples, 2, 3) is optional."""
+    """Frames of ``series`` at ``fps``; ``contact_forces_n`` (n_samples, 2, 3) is optional.
+
+    ``terrain``: the ground the run flew over (the scenario's), drawn when there is gravity.
+    """
     times = frame_times(series.t_s, fps)
     idx = sample_indices(series.t_s, times)
     geometry = SceneGeometry(model)
     forces = None if contact_forces_n is None else np.asarray(contact_forces_n, dtype=float)
     if forces is not None and forces.shape != (len(series), 2, 3):
         raise ValueError(f"contact forces must be ({len(series)}, 2, 3), got {forces.shape}")
-    ground = Ground() if series.gravity_m_s2 > 0.0 else None
+    ground = Ground(terrain=terrain) if series.gravity_m_s2 > 0.0 else None
     scenes = []
     captions = []
     for i in idx:

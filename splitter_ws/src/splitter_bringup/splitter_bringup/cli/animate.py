@@ -1,10 +1,10 @@
 """``splitter animate BAG --out FILE.mp4|.gif``: the recorded flight in 3D.
 
 The bag is read into a :class:`RunSeries` (:mod:`splitter_bringup.analysis.bag_series`)
-plus the two hemis' contact forces; the frames come from
-:mod:`splitter_bringup.analysis.flight_frames`, the drawing and encoding from
-:mod:`splitter_bringup.figures.animation`. ``splitter run`` writes one per variant
-with :func:`splitter_bringup.figures.flight_animation.write_animation`.
+plus the two hemis' contact forces and the ground its simulator flew over; the
+frames come from :mod:`splitter_bringup.analysis.flight_frames`, the drawing and
+encoding from :mod:`splitter_bringup.figures.animation`. ``splitter run`` writes one
+per variant with :func:`splitter_bringup.figures.flight_animation.write_animation`.
 """
 
 from __future__ import annotations
@@ -45,7 +45,13 @@ def main(args: argparse.Namespace) -> int:
     series, contact = bag.series, bag.contact_forces_n
     size = (args.width // 2 * 2, args.height // 2 * 2)
     info = write_animation(
-        series, args.out, bag.title, fps=args.fps, size_px=size, contact_forces_n=contact
+        series,
+        args.out,
+        bag.title,
+        fps=args.fps,
+        size_px=size,
+        contact_forces_n=contact,
+        terrain=bag.terrain,
     )
     print(
         json.dumps(

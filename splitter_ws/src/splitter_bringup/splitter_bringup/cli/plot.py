@@ -34,7 +34,7 @@ def main(args: argparse.Namespace) -> int:
     written = [
         plot_flight(series, out / "flight.png", title),
         plot_quaternion_map(series, out / "quaternion.png", title),
-        plot_trajectory(series, out / "trajectory.png", title),
+        plot_trajectory(series, out / "trajectory.png", title, terrain=bag.terrain),
     ]
     if args.npz:
         series.save_npz(out / "series.npz")

@@ -37,6 +37,7 @@ from splitter_bringup.scenario.definition import (
     available_scenarios,
     load_scenario,
 )
+from splitter_model.terrain import FLAT, Terrain
 
 SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti")
 
@@ -120,15 +121,20 @@ def _run_variant(args: argparse.Namespace, scenario: Scenario) -> VariantRun:
     return run_variant(scenario, LIBRARY, mpc=mpc, progress=_progress_printer(scenario.variant))
 
 
-def _animate(series: RunSeries, out: Path, variant: str, title: str) -> None:
-    """``out/<variant>_flight.mp4``, with contact arrows when the graph recorded a bag."""
+def _animate(
+    series: RunSeries, out: Path, variant: str, title: str, terrain: Terrain = FLAT
+) -> None:
+    """``out/<variant>_flight.mp4`` over ``terrain``, with contact arrows when the graph
+    recorded a bag."""
     from splitter_bringup.figures.flight_animation import write_animation
     from splitter_bringup.run.run_bag import contact_forces_from_bag
 
     bag = out / variant / "bag"
     contact = contact_forces_from_bag(bag, series.t_s) if (bag / "metadata.yaml").exists() else None
     started = time.monotonic()
-    info = write_animation(series, out / f"{variant}_flight.mp4", title, contact_forces_n=contact)
+    info = write_animation(
+        series, out / f"{variant}_flight.mp4", title, contact_forces_n=contact, terrain=terrain
+    )
     print(
         f"  {variant}: animation {info.path.name}, {info.frames} frames "
         f"({time.monotonic() - started:.1f} s)",
@@ -212,7 +218,10 @@ def main(args: argparse.Namespace) -> int:
                 from splitter_bringup.figures.trajectory import plot_trajectory
 
                 plot_trajectory(
-                    series, out / f"{variant}_trajectory.png", f"{base.name}: {variant}"
+                    series,
+                    out / f"{variant}_trajectory.png",
+                    f"{base.name}: {variant}",
+                    terrain=scenario.terrain,
                 )
             if scenario.jumps:
                 from splitter_bringup.analysis.actuator_sizing import limb_dynamic_force_limit_n
@@ -225,10 +234,16 @@ def main(args: argparse.Namespace) -> int:
                     out / f"{variant}_gait.png",
                     f"{base.name}: {variant}, gait phases",
                     limb_dynamic_force_limit_n(),
-                    touchdowns(series, scenario.leg_cone_half_angle_deg, plant_model(scenario)),
+                    touchdowns(
+                        series,
+                        scenario.leg_cone_half_angle_deg,
+                        plant_model(scenario),
+                        terrain=scenario.terrain,
+                    ),
+                    terrain=scenario.terrain,
                 )
         if not args.no_animation:
-            _animate(series, out, variant, f"{base.name}: {variant}")
+            _animate(series, out, variant, f"{base.name}: {variant}", scenario.terrain)
     findings = evaluate_findings(base.findings, all_metrics)
     if not args.no_plots and len(runs) > 1:
         from splitter_bringup.figures.plots import plot_comparison, plot_findings

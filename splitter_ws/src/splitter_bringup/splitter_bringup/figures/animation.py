@@ -3,8 +3,12 @@
 Thin plotting layer: one matplotlib figure whose artists are updated frame by
 frame (the dumbbell's masses, tether, limbs, the arrows of
 :mod:`splitter_sim.core.scene` and a caption), the camera following the
-centre of mass. ``.mp4`` is H.264 through the ffmpeg of the ``imageio-ffmpeg``
-wheel; ``.gif`` goes through Pillow.
+centre of mass. The ground (when the frames have one) is drawn once, before the
+first frame: a light grey wireframe grid following
+:meth:`~splitter_sim.core.scene.Ground.height_at` (the slope and the steps' tops)
+over the whole region the camera visits, and each step's box edges; both are
+clipped to the camera's cube vertex by vertex. ``.mp4`` is H.264 through the
+ffmpeg of the ``imageio-ffmpeg`` wheel; ``.gif`` goes through Pillow.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from splitter_bringup.analysis.flight_frames import FlightFrames
-from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS, Scene
+from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS, Ground, Scene
 
 _log = logging.getLogger(__name__)
 DEFAULT_SIZE_PX = (480, 360)  # (width, height) [px]; multiples of 8 for H.264
@@ -29,6 +33,14 @@ HEMI_COLORS = ("tab:orange", "tab:blue")  # hemi a, hemi b (the simulator's mark
 VIEW_ELEVATION_DEG = 20.0  # [deg]
 VIEW_AZIMUTH_DEG = -60.0  # [deg]
 TICKS_PER_AXIS = 3  # tick labels are most of a frame's drawing time
+GRID_LINES_PER_VIEW = 8  # ground grid lines across the camera's cube (about)
+GRID_SUBDIVISIONS = 4  # vertices per grid cell side (the view clips vertex by vertex)
+MAX_GROUND_VERTICES = 20_000  # a long flight gets a coarser grid beyond this
+GROUND_GRID_COLOR = "0.7"  # light grey
+GROUND_GRID_WIDTH = 0.6  # [pt]
+STEP_EDGE_COLOR = (0.45, 0.35, 0.25)  # RGB
+STEP_EDGE_WIDTH = 1.0  # [pt]
+_WALL_EPS_M = 1e-6  # [m] a grid line meets a step's wall just outside and on its edge
 
 
 @dataclass(frozen=True)
@@ -43,6 +55,88 @@ class AnimationInfo:
 
 def _rgb(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return np.ascontiguousarray(image[:, :, :3])
+
+
+def grid_spacing_m(view_half_width_m: float) -> float:
+    """A round spacing (1, 2 or 5 times a power of ten) [m] giving about
+    :data:`GRID_LINES_PER_VIEW` grid lines across the camera's cube."""
+    raw = max(2.0 * view_half_width_m / GRID_LINES_PER_VIEW, 1e-3)
+    power = 10.0 ** np.floor(np.log10(raw))
+    return float(next(m * power for m in (1.0, 2.0, 5.0, 10.0) if m * power >= raw - 1e-12))
+
+
+def _profile(ground: Ground, start: NDArray, end: NDArray, step_m: float) -> NDArray[np.float64]:
+    """(n, 3) the ground along the horizontal segment start -> end (x, y [m]): samples
+    every ``step_m`` and on both sides of each step wall it crosses (vertical walls)."""
+    length = float(np.hypot(*(end - start)))
+    s = list(np.linspace(0.0, length, max(2, int(np.ceil(length / step_m)) + 1)))
+    direction = (end - start) / max(length, 1e-12)
+    for step in ground.terrain.steps:
+        for axis, edges in ((0, (step.x_min_m, step.x_max_m)), (1, (step.y_min_m, step.y_max_m))):
+            if abs(direction[axis]) < 1e-12:
+                continue
+            for edge in edges:
+                at = (edge - start[axis]) / direction[axis]
+                s += [at - _WALL_EPS_M, at, at + _WALL_EPS_M]
+    s_all = np.unique(np.clip(s, 0.0, length))
+    xy = start + s_all[:, None] * direction
+    z = [ground.height_at(float(x), float(y)) for x, y in xy]
+    return np.column_stack([xy, z])
+
+
+def ground_grid_lines(
+    ground: Ground,
+    x_range_m: tuple[float, float],
+    y_range_m: tuple[float, float],
+    spacing_m: float,
+) -> list[NDArray[np.float64]]:
+    """A wireframe of the ground over the rectangle: polylines (n, 3) of constant y, then
+    of constant x, every ``spacing_m`` (on its multiples), following
+    :meth:`Ground.height_at` with a vertex at least every ``spacing_m / GRID_SUBDIVISIONS``
+    (the view hides a line's vertices outside it). The spacing is doubled until there are
+    at most about :data:`MAX_GROUND_VERTICES` vertices."""
+    while True:
+        x0 = np.floor(x_range_m[0] / spacing_m) * spacing_m
+        x1 = np.ceil(x_range_m[1] / spacing_m) * spacing_m
+        y0 = np.floor(y_range_m[0] / spacing_m) * spacing_m
+        y1 = np.ceil(y_range_m[1] / spacing_m) * spacing_m
+        nx = round((x1 - x0) / spacing_m) + 1
+        ny = round((y1 - y0) / spacing_m) + 1
+        if 2 * nx * ny * GRID_SUBDIVISIONS <= MAX_GROUND_VERTICES:
+            break
+        spacing_m *= 2.0
+    res = spacing_m / GRID_SUBDIVISIONS
+    lines = [
+        _profile(ground, np.array([x0, y]), np.array([x1, y]), res) for y in np.linspace(y0, y1, ny)
+    ]
+    lines += [
+        _profile(ground, np.array([x, y0]), np.array([x, y1]), res) for x in np.linspace(x0, x1, nx)
+    ]
+    return lines
+
+
+def step_edge_lines(ground: Ground, max_length_m: float) -> list[NDArray[np.float64]]:
+    """The twelve edges of each step's box (bottom on the base plane, top ``height_m``
+    above it, vertical walls) as polylines (n, 3), a vertex at least every ``max_length_m``."""
+    terrain = ground.terrain
+    lines = []
+    for step in terrain.steps:
+        corners = [
+            (step.x_min_m, step.y_min_m),
+            (step.x_max_m, step.y_min_m),
+            (step.x_max_m, step.y_max_m),
+            (step.x_min_m, step.y_max_m),
+        ]
+        bottom = np.array(
+            [[x, y, ground.height_m + terrain.base_height_m(x, y)] for x, y in corners]
+        )
+        top = bottom + np.array([0.0, 0.0, step.height_m])
+        edges = [(face[i], face[(i + 1) % 4]) for face in (bottom, top) for i in range(4)]
+        edges += [(bottom[i], top[i]) for i in range(4)]
+        for a, b in edges:
+            n = max(1, int(np.ceil(np.linalg.norm(b - a) / max_length_m)))
+            lines.append(a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a))
+    return lines
 
 
 class _Scene:
@@ -80,7 +174,39 @@ class _Scene:
         names += [n for n in ("contact_a", "contact_b") if n not in names]
         self.arrows = {n: self.ax.plot([], [], [], lw=2.0)[0] for n in names}
         self.heads = {n: self.ax.plot([], [], [], "o", ms=3)[0] for n in names}
-        self.ground = self.ax.plot([], [], [], color="0.6", lw=0.8)[0]
+        self._add_ground()
+
+    def _add_ground(self) -> None:
+        """The ground's grid and step edges over the region the camera visits (once)."""
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        frames = self.frames
+        ground = next((s.ground for s in frames.scenes if s.ground is not None), None)
+        if ground is None:
+            return
+        h = frames.view_half_width_m
+        centres = np.array([s.position_m for s in frames.scenes])
+        spacing = grid_spacing_m(h)
+        grid = ground_grid_lines(
+            ground,
+            (float(centres[:, 0].min() - h), float(centres[:, 0].max() + h)),
+            (float(centres[:, 1].min() - h), float(centres[:, 1].max() + h)),
+            spacing,
+        )
+        self.ax.add_collection3d(
+            Line3DCollection(
+                grid, colors=GROUND_GRID_COLOR, linewidths=GROUND_GRID_WIDTH, axlim_clip=True
+            ),
+            autolim=False,
+        )
+        edges = step_edge_lines(ground, spacing / GRID_SUBDIVISIONS)
+        if edges:
+            self.ax.add_collection3d(
+                Line3DCollection(
+                    edges, colors=[STEP_EDGE_COLOR], linewidths=STEP_EDGE_WIDTH, axlim_clip=True
+                ),
+                autolim=False,
+            )
 
     def draw(self, k: int) -> NDArray[np.uint8]:
         self._draw_scene(self.frames.scenes[k], self.frames.view_half_width_m)
@@ -113,13 +239,6 @@ class _Scene:
         self.ax.set_xlim(c[0] - h, c[0] + h)
         self.ax.set_ylim(c[1] - h, c[1] + h)
         self.ax.set_zlim(c[2] - h, c[2] + h)
-        if scene.ground is None:
-            self.ground.set_data_3d([], [], [])
-            return
-        xs = [c[0] - h, c[0] + h, c[0] + h, c[0] - h, c[0] - h]
-        ys = [c[1] - h, c[1] - h, c[1] + h, c[1] + h, c[1] - h]
-        zs = [scene.ground.height_at(x, y) for x, y in zip(xs, ys, strict=True)]
-        self.ground.set_data_3d(xs, ys, zs)
 
     def close(self) -> None:
         import matplotlib.pyplot as plt

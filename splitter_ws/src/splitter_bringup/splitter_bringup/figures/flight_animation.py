@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from splitter_bringup.analysis.flight_frames import DEFAULT_FPS
 from splitter_bringup.analysis.series import RunSeries
+from splitter_model.terrain import FLAT, Terrain
 
 
 def write_animation(
@@ -23,10 +24,11 @@ def write_animation(
     fps: float = DEFAULT_FPS,
     size_px: tuple[int, int] = (480, 360),
     contact_forces_n: NDArray[np.float64] | None = None,
+    terrain: Terrain = FLAT,
 ):
-    """Frames of ``series`` drawn to ``path``; returns the :class:`AnimationInfo`."""
+    """Frames of ``series`` over ``terrain`` drawn to ``path``; returns the ``AnimationInfo``."""
     from splitter_bringup.analysis.flight_frames import flight_frames
     from splitter_bringup.figures.animation import render_animation
 
-    frames = flight_frames(series, fps, contact_forces_n)
+    frames = flight_frames(series, fps, contact_forces_n, terrain=terrain)
     return render_animation(frames, path, title, size_px)

@@ -28,6 +28,7 @@ from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.analysis.touchdowns import Touchdown
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix
+from splitter_model.terrain import FLAT, Terrain
 from splitter_sim.core.robot_errors import RobotErrors
 
 AXES = ("x", "y", "z")
@@ -257,16 +258,24 @@ def plot_gait(
     title: str = "",
     force_limit_n: float | None = None,
     touchdown_events: Sequence[Touchdown] = (),
+    *,
+    terrain: Terrain = FLAT,
 ) -> Path:
     """The paper's Fig. "full" for a jumping run: height, v_x, |w| and ground force per hemi
     over time, the gait phases as coloured bands (and the limbs' force limit); each
     touchdown of ``touchdown_events`` a vertical line on the force panel, green on the
-    legs, red on the body, with the tether's tilt."""
+    legs, red on the body, with the tether's tilt. ``terrain`` (not level): the ground's
+    height under the centre of mass on the height panel."""
     from splitter_bringup.analysis.jump_metrics import phase_spans
 
     t = series.t_s
     fig, axes = plt.subplots(4, 1, figsize=(9, 9), sharex=True)
     axes[0].plot(t, series.position_m[:, 2], color="k")
+    if not terrain.flat:
+        from splitter_bringup.figures.trajectory import GROUND_COLOR, ground_under_path_m
+
+        ground = ground_under_path_m(terrain, series.position_m)
+        axes[0].plot(t, ground, color=GROUND_COLOR, lw=1.0, label="ground under the COM")
     axes[0].set_ylabel("COM height z [m]")
     axes[1].plot(t, series.velocity_m_s[:, 0], color="k")
     axes[1].set_ylabel("v_x [m/s]")
@@ -302,7 +311,7 @@ def plot_gait(
         if label not in seen:
             axes[0].axvspan(0, 0, color=PHASE_COLOURS.get(label, "grey"), alpha=0.3, label=label)
             seen.add(label)
-    axes[0].legend(loc="upper right", fontsize=8, ncols=len(seen))
+    axes[0].legend(loc="upper right", fontsize=8, ncols=max(1, len(seen)))
     for ax in axes:
         ax.grid(True, alpha=0.3)
     return save_figure(fig, path, title)

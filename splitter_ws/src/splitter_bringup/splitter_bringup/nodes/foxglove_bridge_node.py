@@ -11,7 +11,13 @@ wrenches) each time ``/splitter/scene/masses`` arrives:
 
 * ``/splitter/scene`` (``visualization_msgs/msg/MarkerArray``, cdr): body axes,
   the world angular momentum and the contact force of each hemi as arrows;
-* ``/splitter/tf`` (``foxglove.FrameTransforms``): ``world`` -> ``base`` from odometry.
+* ``/splitter/tf`` (``foxglove.FrameTransforms``): ``world`` -> ``base`` from odometry;
+* ``/splitter/ground`` (``foxglove.SceneUpdate``), unless the ground is level: the
+  terrain of the parameters ``ground_slope_deg``, ``ground_slope_azimuth_deg`` and
+  ``ground_steps_m`` (the simulator's, :class:`splitter_model.terrain.Terrain`) as
+  cubes, the base plane as a thin slab about the robot tilted with the slope and a
+  box per step (:func:`splitter_sim.core.scene.ground_boxes`; entity ids
+  ``ground_base_plane`` and ``ground_step_<i>``, the same in every update).
 
 Message times are the messages' header stamps (simulated time); headerless
 messages take the latest stamp seen. Latched topics (gait phase, references) are
@@ -31,8 +37,19 @@ from collections.abc import Sequence
 
 import foxglove
 import numpy as np
-from foxglove.channels import FrameTransformsChannel
-from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Timestamp, Vector3
+from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
+from foxglove.messages import (
+    Color,
+    CubePrimitive,
+    FrameTransform,
+    FrameTransforms,
+    Pose,
+    Quaternion,
+    SceneEntity,
+    SceneUpdate,
+    Timestamp,
+    Vector3,
+)
 from foxglove.websocket import Capability
 from geometry_msgs.msg import Point
 from rclpy.clock import Clock, ClockType
@@ -41,12 +58,15 @@ from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
 from splitter_bag.core.definitions import header_stamp_ns, message_definition, starts_with_header
+from splitter_model.terrain import Terrain
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES
+from splitter_msgs_py.core.parameter_fields import parameter_fields
 from splitter_msgs_py.node_pattern import run_node
 from splitter_msgs_py.parameters import InvalidParameterError, ParameterSpec, declare_parameters
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
-from splitter_sim.core.scene import Arrow, scene_from_pose
+from splitter_sim.core.scene import Arrow, Box, Ground, ground_boxes, scene_from_pose
+from splitter_sim.core.simulator import SimConfig
 from splitter_sim.messages import masses_from_msg
 
 NODE_NAME = "foxglove_bridge"
@@ -54,6 +74,10 @@ DEFAULT_PORT = 8765
 DEFAULT_HOST = "127.0.0.1"
 SCENE_TOPIC = "/splitter/scene"
 TF_TOPIC = "/splitter/tf"
+GROUND_TOPIC = "/splitter/ground"
+GROUND_ENTITY_PREFIX = "ground_"  # entity id: the prefix and the box's name
+# the terrain's parameters, as the simulator declares them (names, ranges, descriptions)
+GROUND_PARAMETERS = ("ground_slope_deg", "ground_slope_azimuth_deg", "ground_steps_m")
 SCENE_NS = "splitter_scene"
 # marker id of each scene arrow (a missing contact arrow is deleted by id)
 ARROW_IDS = {
@@ -84,6 +108,7 @@ PARAMETERS = (
     ParameterSpec(
         "latched_period_s", 1.0, "wall period of re-sending latched topics [s]", 0.05, 3600.0
     ),
+    *(spec for name, _default, spec in parameter_fields(SimConfig) if name in GROUND_PARAMETERS),
 )
 
 
@@ -116,12 +141,55 @@ def arrow_markers(arrows: Sequence[Arrow], stamp: object) -> MarkerArray:
     return out
 
 
+def ground_scene_update(boxes: Sequence[Box], t_ns: int) -> SceneUpdate:
+    """The ground's boxes as one ``foxglove.SceneUpdate``: an entity per box holding its
+    cube (world frame, id ``ground_<box name>``, no lifetime: the next update replaces it)."""
+    timestamp = Timestamp(sec=int(t_ns // 1_000_000_000), nsec=int(t_ns % 1_000_000_000))
+    entities = []
+    for box in boxes:
+        w, x, y, z = (float(v) for v in box.orientation_wxyz)
+        cx, cy, cz = (float(v) for v in box.centre_m)
+        sx, sy, sz = (float(v) for v in box.size_m)
+        r, g, b, a = (float(v) for v in box.color)
+        cube = CubePrimitive(
+            pose=Pose(
+                position=Vector3(x=cx, y=cy, z=cz),
+                orientation=Quaternion(x=x, y=y, z=z, w=w),
+            ),
+            size=Vector3(x=sx, y=sy, z=sz),
+            color=Color(r=r, g=g, b=b, a=a),
+        )
+        entities.append(
+            SceneEntity(
+                timestamp=timestamp,
+                frame_id=names.WORLD_FRAME,
+                id=f"{GROUND_ENTITY_PREFIX}{box.name}",
+                cubes=[cube],
+            )
+        )
+    return SceneUpdate(entities=entities)
+
+
+def ground_of_parameters(values: dict) -> Ground:
+    """The ground of the node's ``ground_*`` parameters; InvalidParameterError if invalid."""
+    try:
+        terrain = Terrain.from_parameters(
+            values["ground_slope_deg"],
+            values["ground_slope_azimuth_deg"],
+            values["ground_steps_m"],
+        )
+    except ValueError as exc:
+        raise InvalidParameterError(f"ground parameters: {exc}") from exc
+    return Ground(terrain=terrain)
+
+
 class FoxgloveBridgeNode(Node):
     """Forwards the graph's topics to a Foxglove WebSocket server and adds the scene arrows."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
         values = declare_parameters(self, PARAMETERS)
+        self._ground = ground_of_parameters(values)
         self._fg_context = foxglove.Context()
         self._fg_channels: dict[str, foxglove.Channel] = {}
         self._has_header: dict[str, bool] = {}
@@ -136,9 +204,12 @@ class FoxgloveBridgeNode(Node):
         self._scene = bool(values["scene"])
         self._scene_channel: foxglove.Channel | None = None
         self._tf_channel: FrameTransformsChannel | None = None
+        self._ground_channel: SceneUpdateChannel | None = None
         if self._scene:
             self._scene_channel = self._ros_channel(SCENE_TOPIC, names.TOPIC_TYPES[names.MARKERS])
             self._tf_channel = FrameTransformsChannel(TF_TOPIC, context=self._fg_context)
+            if not self._ground.level:
+                self._ground_channel = SceneUpdateChannel(GROUND_TOPIC, context=self._fg_context)
         try:
             self._server = foxglove.start_server(
                 name="splitter",
@@ -163,7 +234,8 @@ class FoxgloveBridgeNode(Node):
             )
         self.get_logger().info(
             f"Foxglove WebSocket server on ws://{self.host}:{self.port} "
-            f"({len(self._fg_channels)} topics{', scene' if self._scene else ''})"
+            f"({len(self._fg_channels)} topics{', scene' if self._scene else ''}"
+            f"{', ground' if self._ground_channel is not None else ''})"
         )
 
     def _ros_channel(self, topic: str, type_name: str) -> foxglove.Channel:
@@ -220,7 +292,8 @@ class FoxgloveBridgeNode(Node):
         return deserialize_message(data, TOPIC_MESSAGE_CLASSES[topic])
 
     def _publish_scene(self, log_time: int) -> None:
-        """Arrows and the base frame of the latest scene; skipped until odometry arrived.
+        """Arrows, the base frame and the ground of the latest scene; skipped until
+        odometry arrived.
 
         The true rate and inertia (``/splitter/truth/...``) when served, else the
         IMU's and ``/splitter/inertia``.
@@ -262,6 +335,9 @@ class FoxgloveBridgeNode(Node):
             rotation=Quaternion(x=float(q.x), y=float(q.y), z=float(q.z), w=float(q.w)),
         )
         self._tf_channel.log(FrameTransforms(transforms=[transform]), log_time=log_time)
+        if self._ground_channel is not None:
+            boxes = ground_boxes(self._ground, position)
+            self._ground_channel.log(ground_scene_update(boxes, scene.t_ns), log_time=log_time)
         self.scene_count += 1
 
     def destroy_node(self) -> None:

@@ -36,9 +36,10 @@ import os
 import re
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from splitter_bringup.analysis.foreign_publishers import FOREIGN_PREFIX
 from splitter_bringup.analysis.watchdog import DEFAULT_STALL_TIMEOUT_S, PROGRESS_TOPICS
@@ -52,6 +53,7 @@ from splitter_bringup.scenario.definition import Scenario
 from splitter_bringup.scenario.graph_config import (
     NodeLaunch,
     graph_nodes,
+    ground_parameters,
     with_parameter_attachments,
     write_parameter_file,
 )
@@ -164,7 +166,7 @@ def _launch(
     nodes = graph_nodes(scenario, real_time=real_time, rate_factor=rate_factor, bag_dir=bag_dir)
     nodes = _with_watchdog(nodes, real_time, stall_timeout_s)
     if foxglove_port is not None:
-        nodes = _with_foxglove(nodes, foxglove_host, foxglove_port)
+        nodes = _with_foxglove(nodes, foxglove_host, foxglove_port, ground_parameters(scenario))
     nodes = _watchdog_knows(nodes)
     nodes = with_parameter_attachments(nodes)  # the bag carries every node's parameters
     incidents: list[str] = []
@@ -258,13 +260,19 @@ def _with_watchdog(
     return out
 
 
-def _with_foxglove(nodes: list[NodeLaunch], host: str, port: int) -> list[NodeLaunch]:
-    """``nodes`` with the Foxglove bridge before the simulator (it sees the run from its start)."""
+def _with_foxglove(
+    nodes: list[NodeLaunch], host: str, port: int, ground: Mapping[str, Any]
+) -> list[NodeLaunch]:
+    """``nodes`` with the Foxglove bridge before the simulator (it sees the run from its start).
+
+    ``ground``: the scenario's ground parameters
+    (:func:`~splitter_bringup.scenario.graph_config.ground_parameters`), drawn by the bridge.
+    """
     bridge = NodeLaunch(
         FOXGLOVE_BRIDGE,
         "splitter_bringup.nodes.foxglove_bridge_node:main",
         "splitter_bringup.nodes.foxglove_bridge_node:FoxgloveBridgeNode",
-        {"use_sim_time": True, "host": host, "port": int(port)},
+        {"use_sim_time": True, "host": host, "port": int(port), **ground},
     )
     out = [n for n in nodes if n.name != "simulator"]
     return [*out, bridge, *(n for n in nodes if n.name == "simulator")]

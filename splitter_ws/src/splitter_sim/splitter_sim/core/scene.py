@@ -15,7 +15,11 @@ animation (:mod:`splitter_bringup.figures.animation`) draw it too.
   ``H = R diag(I) w`` (principal inertia as published on ``/splitter/inertia``; the
   products of inertia of the symmetric shapes are left out) and each hemi's ground
   contact force, drawn from the hemi's lowest mass.
-* Ground: :class:`Ground`, today the plane z = 0.
+* Ground: :class:`Ground`, the terrain (:class:`splitter_model.terrain.Terrain`: a
+  sloped base plane with steps) raised by ``height_m``; level z = 0 by default. The
+  views draw it as boxes (:func:`ground_boxes`): a thin slab whose top is the base
+  plane, around the robot, and one box per step (nothing on level ground z = 0, which
+  RViz's and Foxglove's grids show).
 """
 
 from __future__ import annotations
@@ -24,9 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
+from splitter_model.terrain import FLAT, Terrain
 from splitter_sim.core.shape import BODY_INDICES, ShapeKinematics
 from splitter_sim.core.simulator import SimState
 
@@ -42,6 +48,11 @@ MIN_FORCE_N = 1e-3  # [N] smaller contact forces are not drawn (zero-length arro
 AXIS_COLORS = ((0.9, 0.1, 0.1, 1.0), (0.1, 0.8, 0.1, 1.0), (0.1, 0.3, 0.9, 1.0))  # RGBA
 MOMENTUM_COLOR = (0.6, 0.1, 0.8, 1.0)  # RGBA
 CONTACT_COLOR = (1.0, 0.8, 0.0, 1.0)  # RGBA
+GROUND_HALF_SIDE_M = 8.0  # [m] half the side of the drawn base plane, about the robot
+GROUND_THICKNESS_M = 0.02  # [m] thickness of the drawn base plane (its top is the plane)
+GROUND_COLOR = (0.6, 0.6, 0.6, 0.5)  # RGBA
+STEP_COLOR = (0.55, 0.45, 0.35, 0.9)  # RGBA
+BASE_PLANE = "base_plane"  # name of the base plane's box; a step's is "step_<index>"
 
 
 @dataclass(frozen=True)
@@ -156,17 +167,88 @@ def _arrows(
 
 @dataclass(frozen=True)
 class Ground:
-    """The ground, world frame: today the plane ``z = height_m`` (normal +z).
+    """The ground, world frame: ``terrain`` (a sloped base plane with steps) raised by
+    ``height_m``. ``Ground()`` is the level plane z = 0 (normal +z).
 
-    A slope or a height map would add its description here and answer
-    :meth:`height_at` from it; the views draw the ground through this object.
+    The views draw the ground through this object (:meth:`height_at`, :func:`ground_boxes`).
     """
 
-    height_m: float = 0.0  # [m]
+    height_m: float = 0.0  # [m] added to the terrain's height everywhere
+    terrain: Terrain = FLAT
+
+    @property
+    def level(self) -> bool:
+        """The plane z = 0: no slope, no step, no offset."""
+        return self.height_m == 0.0 and self.terrain.flat
 
     def height_at(self, x_m: float, y_m: float) -> float:
-        """Ground height under the world point (x, y) [m]."""
-        return self.height_m
+        """Ground height under the world point (x, y) [m]: a step's top where there is one."""
+        return self.height_m + self.terrain.height_m(x_m, y_m)
+
+
+@dataclass(frozen=True)
+class Box:
+    """One box of the drawn ground, world frame: centre, sides along its own axes, orientation."""
+
+    name: str  # BASE_PLANE or "step_<index>" (index in Terrain.steps)
+    centre_m: NDArray[np.float64]  # (3,) [m]
+    size_m: NDArray[np.float64]  # (3,) sides along the box's x, y, z axes [m]
+    orientation_wxyz: NDArray[np.float64]  # (4,) world <- box (unit)
+    color: tuple[float, float, float, float]  # RGBA in [0, 1]
+
+
+def _frame_quaternion(frame: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(w, x, y, z) of the rotation matrix ``frame`` (w >= 0)."""
+    q = Rotation.from_matrix(frame).as_quat(scalar_first=True)
+    return q if q[0] >= 0.0 else -q
+
+
+def ground_boxes(
+    ground: Ground, around_m: ArrayLike, half_side_m: float = GROUND_HALF_SIDE_M
+) -> tuple[Box, ...]:
+    """The ground as boxes tilted with the slope (their z axis the terrain's normal).
+
+    First the base plane: a slab ``GROUND_THICKNESS_M`` thick whose top is the base
+    plane, ``2 half_side_m`` square, centred under ``around_m`` (x, y [m]: the robot).
+    Then one box per step (name ``step_<i>``): its footprint, from the base plane up to
+    its top, centred at the base plane's height under the footprint's centre plus half
+    the step's height. A box's walls are perpendicular to the base plane, the step's
+    are vertical: on a slope of ``theta`` they lean ``theta`` from each other. Level
+    ground (:attr:`Ground.level`) gives no box; the names are the same on every call.
+    """
+    if ground.level:
+        return ()
+    terrain = ground.terrain
+    frame = terrain.ground_frame()  # columns: box x, y, z axes in the world
+    q = _frame_quaternion(frame)
+    n = frame[:, 2]
+    x, y = (float(v) for v in np.asarray(around_m, dtype=float).reshape(-1)[:2])
+    on_plane = np.array([x, y, ground.height_m + terrain.base_height_m(x, y)])
+    side = 2.0 * float(half_side_m)
+    boxes = [
+        Box(
+            BASE_PLANE,
+            on_plane - 0.5 * GROUND_THICKNESS_M * n,
+            np.array([side, side, GROUND_THICKNESS_M]),
+            q,
+            GROUND_COLOR,
+        )
+    ]
+    for i, step in enumerate(terrain.steps):
+        cx = 0.5 * (step.x_min_m + step.x_max_m)
+        cy = 0.5 * (step.y_min_m + step.y_max_m)
+        cz = ground.height_m + terrain.base_height_m(cx, cy) + 0.5 * step.height_m
+        # the footprint's sides along the box's axes (their world x, y parts span it);
+        # the height: the top is the base plane raised vertically by height_m
+        size = np.array(
+            [
+                (step.x_max_m - step.x_min_m) / frame[0, 0],
+                (step.y_max_m - step.y_min_m) / frame[1, 1],
+                step.height_m * n[2],
+            ]
+        )
+        boxes.append(Box(f"step_{i}", np.array([cx, cy, cz]), size, q, STEP_COLOR))
+    return tuple(boxes)
 
 
 @dataclass(frozen=True)

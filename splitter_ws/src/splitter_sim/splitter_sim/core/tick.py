@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.actuators import CommandLag
 from splitter_model.rotations import quaternion_to_matrix
-from splitter_model.sensors import RANGE_MAX_M, RANGE_MIN_M, downward_range_m
+from splitter_model.sensors import RANGE_MAX_M, RANGE_MIN_M, terrain_range_m
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.stamps import ClockNs, MessageValidationError, StampGate, clock_value
@@ -150,6 +150,7 @@ class SimulatorTick:
         s = settings or SimulatorSettings()
         dt_ns = sim.config.dt_ns
         self.sim = sim
+        self._terrain = sim.config.terrain
         self.settings = s
         self.real_time = s.mode == "real_time"
         self.control_ns = s.period_ns("control_period_s", dt_ns)
@@ -157,7 +158,7 @@ class SimulatorTick:
         self.diagnostics_ns = s.period_ns("diagnostics_period_s", dt_ns)
         self.progress_ns = max(dt_ns, round(s.progress_period_s * 1e9))
         self.duration_ns = round(s.duration_s * 1e9)  # 0: never ends
-        self.ground = Ground() if sim.config.ground_contact else None
+        self.ground = Ground(terrain=sim.config.terrain) if sim.config.ground_contact else None
         self.stamps = CommandStamps((names.JOINT_COMMANDS,) if self.real_time else ())
         self.lockstep = LockstepWait(LOCKSTEP_TOPICS, s.lockstep_timeout_s)
         self.queue = CommandQueue()  # joint commands stamped ahead, applied at their stamps
@@ -367,9 +368,10 @@ class SimulatorTick:
         """
 
         rot = quaternion_to_matrix(state.orientation_wxyz)
+        terrain = self._terrain
         exact = np.array(
             [
-                downward_range_m(state.mass_positions_world_m[body, 2], rot)
+                terrain_range_m(terrain, state.mass_positions_world_m[body], rot)
                 for body in HEMI_BODY_INDEX
             ]
         )
