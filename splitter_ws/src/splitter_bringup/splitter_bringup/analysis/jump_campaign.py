@@ -612,6 +612,7 @@ CSV_OUTCOME_FIELDS = (
     "touchdowns",
     "touchdowns_on_legs",
     "body_ground_contact_s",
+    "tether_ground_contact_s",
     "landed_at_s",
     "max_tether_tilt_deg",
     "peak_w_rad_s",
