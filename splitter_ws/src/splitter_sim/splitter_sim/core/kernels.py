@@ -584,7 +584,7 @@ class Kernels:
         ws[WS_POS_MAX] = limits.position_max
         ws[WS_OWN_INERTIA] = own_inertia
         self.ws = ws
-        self.set_planes(getattr(prm, "ground_planes", None))
+        self.set_planes(prm.ground_planes)
         self.out_shape = np.zeros(SHAPE_SIZE)
         self.out_begin = np.zeros(BEGIN_SIZE)
         self.out_step = np.zeros(STEP_SIZE)

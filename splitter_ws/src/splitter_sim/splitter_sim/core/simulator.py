@@ -508,6 +508,8 @@ class Simulator:
         self._far_above_m = config.thrust_stroke_m + 1.0
         terrain = config.terrain
         self._terrain = terrain
+        # [m] no mass is farther from the COM (the plane choice is skipped above it)
+        self._reach_bound_m = math.hypot(model.radius_x_max_m, model.limb_radius_max_m)
         self._ground_normal = terrain.normal
         # world <- ground rotation of the legs' law on a slope (None: level)
         self._ground_frame = None if terrain.slope_deg == 0.0 else terrain.ground_frame()
@@ -967,7 +969,7 @@ class Simulator:
         ws = kern.ws
         moving = False
         begin = kern.out_begin
-        if self._terrain.steps:
+        if self._terrain.steps and not self._far_above(self._s, self._reach_bound_m):
             self._update_ground_planes(self._s, self._current_shape())
         if not self._settled:
             if not self._cmd_static:
