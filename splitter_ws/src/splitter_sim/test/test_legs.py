@@ -8,7 +8,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from splitter_sim.core.legs import LegImpedance, foot_hold_force, leg_stance_force
+from splitter_sim.core.legs import (
+    LegImpedance,
+    foot_hold_force,
+    leg_stance_force,
+    slipped_anchor,
+)
 from splitter_sim.core.simulator import SimConfig
 
 # The simulator's defaults (SimConfig): weak spring, strong damper, 190 N cap, mu = 0.8.
@@ -21,7 +26,7 @@ LEGS = LegImpedance(
     roll_stiffness_nm_rad=24.0,
     roll_damping_nm_s_rad=4.8,
     hold_stiffness_n_m=400.0,
-    stick_speed_m_s=0.02,
+    hold_damping_n_s_m=120.0,
 )
 SPEED = st.floats(-20.0, 20.0)  # [m/s] a velocity component
 VELOCITY = st.tuples(SPEED, SPEED, SPEED)
@@ -168,3 +173,10 @@ def test_planted_feet_pull_back_towards_where_they_stuck() -> None:
     fx, fy, fz = leg_stance_force(0.3, (0.0, 0.0, 0.0), LEGS, (0.0, 0.0, 1.0), hold)
     assert (fx, fy) == pytest.approx(hold)
     assert fz == pytest.approx(LEGS.stiffness_n_m * 0.3)
+
+
+def test_planted_feet_slip_at_the_cone_by_dragging_behind_the_hemi() -> None:
+    assert slipped_anchor((0.01, 0.0), (0.0, 0.0), 10.0, LEGS) == (0.0, 0.0)  # 4 N: held
+    anchor = slipped_anchor((0.1, 0.0), (0.0, 0.0), 10.0, LEGS)  # 40 N asked, 10 N held
+    assert anchor == pytest.approx((0.1 - 10.0 / 400.0, 0.0))
+    assert math.hypot(*foot_hold_force((0.1 - anchor[0], 0.0), LEGS)) == pytest.approx(10.0)

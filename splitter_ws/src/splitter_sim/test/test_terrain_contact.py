@@ -143,3 +143,42 @@ def test_level_terrain_parameters_give_the_level_ground_exactly() -> None:
     assert config.terrain == Terrain(0.0, 45.0)
     b = _run(_standing(config, 0.3), 0.5)
     np.testing.assert_array_equal(a[-1].position_m, b[-1].position_m)
+
+
+def _slide(slope_deg: float, hold_n_m: float, seconds: float = 6.0) -> list:
+    """A robot standing on its legs sliding at 1.5 m/s down a slope rising towards -x."""
+    config = SimConfig(
+        gravity_m_s2=G_MOON,
+        compliant_legs=True,
+        ground_slope_deg=slope_deg,
+        ground_slope_azimuth_deg=180.0,
+        leg_hold_stiffness_n_m=hold_n_m,
+    )
+    standing = _standing(config, 0.2)
+    frame = config.terrain.ground_frame()
+    state = standing.state()
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(
+            position_m=tuple(state.position_m),
+            velocity_m_s=tuple(frame @ (1.5, 0.0, 0.0)),
+            orientation_wxyz=tuple(state.orientation_wxyz),
+        ),
+    )
+    return _run(sim, seconds)
+
+
+@pytest.mark.parametrize("slope_deg", [0.0, 8.0])
+def test_planted_feet_stop_a_slide_within_the_coulomb_distance(slope_deg: float) -> None:
+    states = _slide(slope_deg, SimConfig().leg_hold_stiffness_n_m)
+    travel = float(np.linalg.norm(states[-1].position_m - states[0].position_m))
+    theta = math.radians(slope_deg)
+    deceleration = G_MOON * (0.8 * math.cos(theta) - math.sin(theta))  # [m/s^2]
+    assert travel == pytest.approx(1.5**2 / (2.0 * deceleration), rel=0.05)
+    assert abs(float(states[-1].velocity_m_s[0])) < 0.005  # at rest, held
+
+
+def test_without_planted_feet_a_downhill_slide_never_stops() -> None:
+    states = _slide(8.0, 0.0)
+    assert float(np.linalg.norm(states[-1].velocity_m_s[:2])) > 0.05  # [m/s] still creeping

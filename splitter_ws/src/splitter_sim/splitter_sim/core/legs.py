@@ -63,8 +63,8 @@ class LegImpedance:
     cone_half_angle_deg: float = 60.0  # [deg] workspace: belly normal to ground normal
     roll_stiffness_nm_rad: float = 0.0  # [N m/rad] levelling moment about the tether axis
     roll_damping_nm_s_rad: float = 0.0  # [N m s/rad]
-    hold_stiffness_n_m: float = 0.0  # [N/m] planted feet: spring to where they stuck
-    stick_speed_m_s: float = 0.0  # [m/s] the feet stick below this sliding speed
+    hold_stiffness_n_m: float = 0.0  # [N/m] planted feet: spring to where they stand
+    hold_damping_n_s_m: float = 0.0  # [N s/m] along the ground while planted (hip damper)
 
     def __post_init__(self) -> None:
         for name in (
@@ -75,7 +75,7 @@ class LegImpedance:
             "roll_stiffness_nm_rad",
             "roll_damping_nm_s_rad",
             "hold_stiffness_n_m",
-            "stick_speed_m_s",
+            "hold_damping_n_s_m",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -169,8 +169,8 @@ def _held_stance_force(
     belly_up: tuple[float, float, float],
     hold_n: tuple[float, float],
 ) -> tuple[float, float, float]:
-    """:func:`leg_stance_force` with planted feet: the hip damper plus the hold spring
-    along the ground, within the friction cone and the force cap (normal first)."""
+    """:func:`leg_stance_force` with planted feet: the hold spring and damper along the
+    ground, within the friction cone and the force cap (normal first)."""
     vx, vy, vz = velocity
     nx, ny, nz = belly_up
     v_n = vx * nx + vy * ny + vz * nz
@@ -181,8 +181,9 @@ def _held_stance_force(
     fx, fy, fz = normal * nx, normal * ny, normal * nz
     if fz <= 0.0:
         return 0.0, 0.0, 0.0
-    tx = hold_n[0] - legs.tangential_damping_n_s_m * vx + fx
-    ty = hold_n[1] - legs.tangential_damping_n_s_m * vy + fy
+    damping = max(legs.hold_damping_n_s_m, legs.tangential_damping_n_s_m)
+    tx = hold_n[0] - damping * vx + fx
+    ty = hold_n[1] - damping * vy + fy
     along = math.hypot(tx, ty)
     limit = min(
         legs.friction_coefficient * fz,
@@ -198,11 +199,34 @@ def foot_hold_force(offset_m: tuple[float, float], legs: LegImpedance) -> tuple[
     hemi: ``-k_hold offset`` (:attr:`LegImpedance.hold_stiffness_n_m`).
 
     The hip damper alone lets a hemi standing on a slope creep downhill at
-    ``m g sin(slope) / c_t`` (0.13 m/s for a lunar hemi on 10 deg); feet that stick
-    hold it where the friction cone allows (``tan(slope) < mu``).
+    ``m g sin(slope) / c_t`` (0.13 m/s for a lunar hemi on 10 deg) and slows a slide
+    with less than the ground's friction below ``mu N / c_t``; planted feet hold it
+    where the friction cone allows and slip at its edge (:func:`slipped_anchor`).
     """
     k = legs.hold_stiffness_n_m
     return -k * offset_m[0], -k * offset_m[1]
+
+
+def slipped_anchor(
+    where_m: tuple[float, float],
+    anchor_m: tuple[float, float],
+    limit_n: float,
+    legs: LegImpedance,
+) -> tuple[float, float]:
+    """Where planted feet stand after this step: unchanged while their spring pulls
+    within ``limit_n`` [N] (the friction cone, and what the force cap leaves), else
+    dragged behind the hemi at ``where_m`` so that it pulls exactly ``limit_n``.
+
+    A bristle model of Coulomb friction: a sliding hemi is braked by the cone's edge,
+    a hemi the cone can hold stops and stays (no creep).
+    """
+    dx, dy = where_m[0] - anchor_m[0], where_m[1] - anchor_m[1]
+    stretch = math.hypot(dx, dy)
+    reach = max(limit_n, 0.0) / legs.hold_stiffness_n_m
+    if stretch <= reach:
+        return anchor_m
+    scale = reach / stretch
+    return where_m[0] - scale * dx, where_m[1] - scale * dy
 
 
 def _level_stance_force(

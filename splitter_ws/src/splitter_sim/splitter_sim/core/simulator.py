@@ -55,6 +55,7 @@ from splitter_sim.core.legs import (
     leg_stance_force,
     legs_face_ground,
     roll_load_share,
+    slipped_anchor,
 )
 from splitter_sim.core.rigid_body import (
     DynamicsParameters,
@@ -110,7 +111,7 @@ _NON_NEGATIVE = (
     "leg_roll_stiffness_nm_rad",
     "leg_roll_damping_nm_s_rad",
     "leg_hold_stiffness_n_m",
-    "leg_stick_speed_m_s",
+    "leg_hold_damping_n_s_m",
     "command_extrapolation_s",
     "knot_blend_s",
 )
@@ -219,16 +220,18 @@ class SimConfig:
         4.8, "roll damping of a hemi's legs in stance [N m s/rad]", bounds=_GAIN_RANGE
     )
     # splitter_sim.core.legs (planted feet): a lunar hemi (14.6 N) on a 10 deg slope
-    # leans 6 mm on this spring; 9 kg on it: 6.7 rad/s.
+    # leans 6 mm on this spring; 9 kg on it: 6.7 rad/s. 0: the hip damper alone.
     leg_hold_stiffness_n_m: float = parameter_field(
         400.0,
-        "spring of a hemi's planted feet along the ground, from where they stuck [N/m]",
+        "spring of a hemi's planted feet along the ground, from where they stand; they "
+        "slip at the friction cone's edge [N/m]",
         bounds=_GAIN_RANGE,
     )
-    leg_stick_speed_m_s: float = parameter_field(
-        0.02,
-        "a hemi's feet stick (and hold it) once it slides slower than this [m/s]",
-        bounds=(0.0, 10.0),
+    leg_hold_damping_n_s_m: float = parameter_field(
+        120.0,
+        "damping of a hemi's planted feet along the ground (0.8 of critical on a lunar "
+        "hemi's 15 kg and the hold spring) [N s/m]",
+        bounds=_GAIN_RANGE,
     )
     # splitter_sim.core.legs: a 0.4 m leg clears a 0.2 m half-wide body up to 90 - 30 deg.
     leg_cone_half_angle_deg: float = parameter_field(
@@ -299,7 +302,7 @@ class SimConfig:
             roll_stiffness_nm_rad=self.leg_roll_stiffness_nm_rad,
             roll_damping_nm_s_rad=self.leg_roll_damping_nm_s_rad,
             hold_stiffness_n_m=self.leg_hold_stiffness_n_m,
-            stick_speed_m_s=self.leg_stick_speed_m_s,
+            hold_damping_n_s_m=self.leg_hold_damping_n_s_m,
         )
 
     @property
@@ -801,11 +804,11 @@ class Simulator:
         and it is not pushing a jump (the thrust is then the legs' force). The force is
         shared between the hemi's left and right feet, under its y limbs, so that the
         legs level the body about the tether axis (:func:`.legs.roll_load_share`).
-        Feet that slide slower than ``leg_stick_speed_m_s`` stick where they are and
-        hold the hemi there with a spring (:func:`.legs.foot_hold_force`) until the
-        friction cone lets them slip or they leave the ground; ``update`` False (a
-        snapshot) leaves where they stuck unchanged. On a slope the law acts in the
-        ground's frame.
+        The feet plant where the legs meet the ground and hold the hemi with a spring
+        (:func:`.legs.foot_hold_force`); beyond the friction cone they slip, dragged
+        behind the hemi (:func:`.legs.slipped_anchor`), until the legs leave the
+        ground; ``update`` False (a snapshot) leaves where they stand unchanged. On a
+        slope the law acts in the ground's frame.
         """
         if not self.config.compliant_legs:
             return ()
@@ -847,12 +850,7 @@ class Simulator:
                 velocity = tuple((frame.T @ velocity).tolist())
                 belly_up = tuple((frame.T @ belly_up).tolist())
             anchor = anchors[h]
-            if (
-                anchor is None
-                and update
-                and legs.hold_stiffness_n_m > 0.0
-                and math.hypot(velocity[0], velocity[1]) < legs.stick_speed_m_s
-            ):
+            if anchor is None and update and legs.hold_stiffness_n_m > 0.0:
                 anchor = anchors[h] = where
             hold = (
                 (0.0, 0.0)
@@ -864,8 +862,12 @@ class Simulator:
                 if update:
                     anchors[h] = None
                 continue
-            if update and math.hypot(*hold) > legs.friction_coefficient * fz:
-                anchors[h] = None  # the feet slip
+            if update and anchor is not None:  # the feet slip at the cone's edge
+                limit = min(
+                    legs.friction_coefficient * fz,
+                    math.sqrt(max(legs.force_max_n * legs.force_max_n - fz * fz, 0.0)),
+                )
+                anchors[h] = slipped_anchor(where, anchor, limit, legs)
             if frame is not None:
                 fx, fy, fz = (frame @ (fx, fy, fz)).tolist()
             left, right = HEMI_FOOT_INDEX[h]
