@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial.transform import Rotation
 
 from splitter_bringup.analysis.jump_campaign import (
     JumpRanges,
+    jump_scenario_document,
     make_jump_draw,
     scenario_for_jump_draw,
     tether_tilt_deg,
@@ -115,3 +117,25 @@ def test_the_tether_tilt_is_measured_from_the_ground() -> None:
     assert tether_tilt_deg(aligned)[0] == pytest.approx(10.0)  # from the level plane
     assert tether_tilt_deg(aligned, terrain.normal)[0] == pytest.approx(0.0, abs=1e-9)
     assert math.isfinite(float(tether_tilt_deg(aligned, terrain.normal)[0]))
+
+
+def test_a_draws_scenario_file_flies_the_same_world(tmp_path: Path) -> None:
+    """The file a campaign writes for a draw on terrain loads back as the world it flew."""
+    variants = {v: load_scenario("lunar_jumping", v) for v in ("mpc", "open_loop")}
+    draw = make_jump_draw(3, 4242, 2, JumpRanges(slope_deg=10.0, step_height_m=0.2))
+    assert not draw.terrain.flat
+    path = tmp_path / "draw.yaml"
+    path.write_text(yaml.safe_dump(jump_scenario_document(variants, draw)))
+    for name, base in variants.items():
+        flown = scenario_for_jump_draw(base, draw)
+        loaded = load_scenario(path, name)
+        assert loaded.terrain == flown.terrain
+        np.testing.assert_allclose(loaded.initial_position_m, flown.initial_position_m)
+        np.testing.assert_allclose(
+            loaded.initial_orientation_euler_deg, flown.initial_orientation_euler_deg, atol=1e-9
+        )
+        for a, b in zip(loaded.jumps, flown.jumps, strict=True):
+            np.testing.assert_allclose(a.force_n, b.force_n, atol=1e-9)
+            np.testing.assert_allclose(a.force_b_n, b.force_b_n, atol=1e-9)
+        assert loaded.robot_errors == flown.robot_errors
+        assert loaded.controller == flown.controller
