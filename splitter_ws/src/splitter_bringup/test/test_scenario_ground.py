@@ -12,7 +12,10 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from splitter_bringup.analysis.jump_campaign import (
+    JumpDrawResult,
     JumpRanges,
+    LandingOutcome,
+    binned_success,
     jump_scenario_document,
     make_jump_draw,
     scenario_for_jump_draw,
@@ -139,3 +142,26 @@ def test_a_draws_scenario_file_flies_the_same_world(tmp_path: Path) -> None:
             np.testing.assert_allclose(a.force_b_n, b.force_b_n, atol=1e-9)
         assert loaded.robot_errors == flown.robot_errors
         assert loaded.controller == flown.controller
+
+
+def test_the_terrain_factors_of_a_draw() -> None:
+    draw = make_jump_draw(0, 7, 2, JumpRanges())
+    factors = draw.factors()
+    assert factors["step_edge_m"] == draw.step_edge_m
+    expected = draw.slope_deg * math.cos(math.radians(draw.slope_azimuth_deg))
+    assert factors["slope_along_path_deg"] == pytest.approx(expected)
+    level = make_jump_draw(0, 7, 2, JumpRanges(slope_deg=0.0, step_height_m=0.0))
+    assert math.isnan(level.factors()["step_edge_m"])  # no step, no edge
+
+
+def test_success_against_a_factor_leaves_out_the_draws_without_it() -> None:
+    ranges = JumpRanges()
+    stepped = [make_jump_draw(i, 100 + i, 2, ranges) for i in range(6)]
+    level = [make_jump_draw(9, 9, 2, JumpRanges(step_height_m=0.0))]
+    results = [
+        JumpDrawResult(d, {"mpc": LandingOutcome(success=i % 2 == 0, failure_mode=None)}, 1.0)
+        for i, d in enumerate(stepped + level)
+    ]
+    _, rate, counts = binned_success(results, "mpc", "step_edge_m", bins=2)
+    assert counts.sum() == len(stepped)
+    assert np.nansum(rate * counts) == 3  # the three successes among the stepped draws

@@ -184,7 +184,10 @@ class JumpDraw:
             "gyro_bias_max_rad_s": float(np.abs(self.gyro_bias_rad_s).max()),
             "command_latency_s": self.command_latency_s,
             "slope_deg": self.slope_deg,
+            # [deg] the slope's rise along the path (+x): negative, downhill
+            "slope_along_path_deg": self.slope_deg * math.cos(math.radians(self.slope_azimuth_deg)),
             "step_height_m": self.step_height_m,
+            "step_edge_m": self.step_edge_m if self.step_height_m > 0.0 else math.nan,
         }
 
 
@@ -590,9 +593,12 @@ def binned_success(
     results: Sequence[JumpDrawResult], variant: str, factor: str, bins: int = 5
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
     """(bin centres, success rate, draws) of ``variant`` against a draw factor
-    (:meth:`JumpDraw.factors`), ``bins`` equal-width bins over its range."""
+    (:meth:`JumpDraw.factors`), ``bins`` equal-width bins over its range (draws where
+    the factor is NaN, such as the edge of a step not drawn, left out)."""
     x = np.array([r.draw.factors()[factor] for r in results if variant in r.outcomes])
     ok = np.array([r.outcomes[variant].success for r in results if variant in r.outcomes])
+    known = np.isfinite(x)
+    x, ok = x[known], ok[known]
     if x.size == 0:
         return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
     lo, hi = float(x.min()), float(x.max())
