@@ -240,6 +240,11 @@ def test_bad_commands_are_rejected_and_the_node_keeps_publishing_finite_data(gra
         ("mode", "fast"),
         ("markers_period_s", 0.0333),
         ("initial_position_m", [0.0, math.nan, 1.0]),
+        ("ground_slope_deg", 90.0),
+        ("ground_slope_deg", math.nan),
+        ("ground_steps_m", [5.0, 6.0, -1.0, 1.0]),  # 4 values: not a step
+        ("ground_steps_m", [6.0, 5.0, -1.0, 1.0, 0.1]),  # x_max before x_min
+        ("leg_hold_stiffness_n_m", -1.0),
     ],
 )
 def test_an_invalid_parameter_stops_start_up_naming_it(ros_context, name, value) -> None:

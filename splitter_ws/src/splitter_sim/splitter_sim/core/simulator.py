@@ -270,10 +270,15 @@ class SimConfig:
             raise ValueError(
                 f"SimConfig.leg_cone_half_angle_deg must be in [1, 89] deg, got {cone!r}"
             )
-        try:
-            self.terrain  # noqa: B018  (validated by constructing it)
+        try:  # the plane alone, then the steps alone: the error names its parameter
+            Terrain(self.ground_slope_deg, self.ground_slope_azimuth_deg)
         except ValueError as exc:
-            raise ValueError(f"SimConfig ground: {exc}") from exc
+            raise ValueError(f"SimConfig.ground_{exc}") from exc
+        try:
+            Terrain.from_parameters(0.0, 0.0, self.ground_steps_m)
+        except ValueError as exc:
+            text = str(exc).removeprefix("ground_steps_m: ")
+            raise ValueError(f"SimConfig.ground_steps_m: {text}") from exc
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
         if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
