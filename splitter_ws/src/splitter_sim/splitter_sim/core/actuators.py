@@ -211,9 +211,15 @@ def snap_arrived(
     qd: NDArray[np.float64],
     q_target: NDArray[np.float64],
     qd_target: NDArray[np.float64],
+    free: NDArray[np.bool_] | None = None,
 ) -> bool:
-    """Put joints within round-off of a resting target exactly on it; True if any moved."""
+    """Put joints within round-off of a resting target exactly on it; True if any moved.
+
+    ``free``: joints that no longer follow their servo (faults), never snapped.
+    """
     arrived = arrived_at_rest(ARRAY_MATH, q, qd, q_target, qd_target)
+    if free is not None:
+        arrived &= ~free
     if not arrived.any():
         return False
     q[arrived] = q_target[arrived]

@@ -116,7 +116,11 @@ WS_FORCES = slice(272, 272 + 4 * FORCE_SLOTS)  # per slot: mass index, force wor
 WS_OWN_INERTIA = slice(WS_FORCES.stop, WS_FORCES.stop + 3)  # hemi bodies' own [kg m^2]
 # the ground plane (nx, ny, nz, d) of each mass (splitter_model.terrain; level: 0, 0, 1, 0)
 WS_PLANES = slice(WS_OWN_INERTIA.stop, WS_OWN_INERTIA.stop + 4 * N_MASSES)
-WS_SIZE = WS_PLANES.stop
+# A joint that no longer follows its servo (splitter_model.faults): 1.0 per such joint
+# (locked or limp), and the acceleration it has over the step instead [rad/s^2].
+WS_FREE = slice(WS_PLANES.stop, WS_PLANES.stop + N_JOINTS)
+WS_FREE_QDD = slice(WS_FREE.stop, WS_FREE.stop + N_JOINTS)
+WS_SIZE = WS_FREE_QDD.stop
 
 # --- shape block (in the outputs) ------------------------------------------------------
 SH_MOVING = 0  # 1.0 when any joint velocity or acceleration is non-zero
@@ -237,17 +241,22 @@ def _shape_view(ca: Any, block: Sequence) -> SimpleNamespace:
 
 
 def _sym_servo(ca: Any, ws: Any) -> list:
-    """Servo acceleration of every joint: ``actuators.servo_law`` per joint."""
+    """Servo acceleration of every joint: ``actuators.servo_law`` per joint (a free joint:
+    its ``WS_FREE_QDD``)."""
     return [
-        servo_law(
-            ca,
-            ws[WS_Q.start + j],
-            ws[WS_QD.start + j],
-            ws[WS_TARGET.start + j],
-            ws[WS_TARGET_V.start + j],
-            ws[WS_ACC_MAX.start + j],
-            ws[WS_SPEED_MAX.start + j],
-            ws[WS_DT],
+        ca.if_else(
+            ws[WS_FREE.start + j] != 0.0,
+            ws[WS_FREE_QDD.start + j],
+            servo_law(
+                ca,
+                ws[WS_Q.start + j],
+                ws[WS_QD.start + j],
+                ws[WS_TARGET.start + j],
+                ws[WS_TARGET_V.start + j],
+                ws[WS_ACC_MAX.start + j],
+                ws[WS_SPEED_MAX.start + j],
+                ws[WS_DT],
+            ),
         )
         for j in range(N_JOINTS)
     ]
@@ -265,10 +274,14 @@ def _sym_finish(ca: Any, ws: Any, q: Sequence, qd: Sequence, qdd: Sequence) -> l
     changed = settled = 0.0
     for j in range(N_JOINTS):
         target, target_v = ws[WS_TARGET.start + j], ws[WS_TARGET_V.start + j]
+        free = ws[WS_FREE.start + j] != 0.0
         clipped = ca.fmin(ca.fmax(q[j], ws[WS_POS_MIN.start + j]), ws[WS_POS_MAX.start + j])
-        arrived = arrived_at_rest(ca, clipped, qd[j], target, target_v)
+        arrived = ca.logic_and(
+            arrived_at_rest(ca, clipped, qd[j], target, target_v), ca.logic_not(free)
+        )
+        stopped = ca.logic_and(free, clipped != q[j])  # a free joint at its range's end
         q_j = ca.if_else(arrived, target, clipped)
-        qd_j = ca.if_else(arrived, 0.0, qd[j])
+        qd_j = ca.if_else(ca.logic_or(arrived, stopped), 0.0, qd[j])
         changed = ca.logic_or(changed, ca.logic_or(clipped != q[j], arrived))
         settled = ca.logic_or(
             settled, ca.logic_or(ca.logic_or(qd_j != 0.0, target_v != 0.0), q_j != target)

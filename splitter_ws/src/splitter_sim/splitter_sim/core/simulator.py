@@ -41,13 +41,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.actuators import N_JOINTS, TETHER_INDEX, ActuatorLimits, actuator_limits
-from splitter_model.joints import LIMB_JOINT_SLICE, N_LIMBS
+from splitter_model.faults import FAULT_CODES, LIMP, LOCKED, JointFault, faults_from_parameters
+from splitter_model.joints import JOINT_NAMES, LIMB_JOINT_SLICE, N_LIMBS
 from splitter_model.kinematics import joint_positions_from_radii, limb_joint_torques
 from splitter_model.model import STANDARD_GRAVITY, RobotModel
 from splitter_model.terrain import SLOPE_MAX_DEG, Terrain
 from splitter_msgs_py.core.parameter_fields import parameter_field
 from splitter_sim.core import actuators, kernels
 from splitter_sim.core.contact import contact_reach_m, mass_heights_m
+from splitter_sim.core.joint_faults import limp_joint_accelerations
 from splitter_sim.core.legs import (
     LegImpedance,
     foot_hold_force,
@@ -255,6 +257,20 @@ class SimConfig:
         "is rounded by a parabolic blend this long (0: off) [s]",
         bounds=(0.0, 1.0),
     )
+    # Faults (splitter_model.faults): joint fault_joints[i] fails as fault_kinds[i] at
+    # fault_times_s[i]. More can be injected while running (Simulator.inject_fault).
+    fault_joints: tuple[str, ...] = parameter_field(
+        (), "joints that fail (names of /splitter/joint_states)", item_type=str, choices=JOINT_NAMES
+    )
+    fault_kinds: tuple[str, ...] = parameter_field(
+        (),
+        "how each of fault_joints fails: locked or limp",
+        item_type=str,
+        choices=("locked", "limp"),
+    )
+    fault_times_s: tuple[float, ...] = parameter_field(
+        (), "simulated time at which each of fault_joints fails [s]", bounds=(0.0, 1e6)
+    )
 
     def __post_init__(self) -> None:
         for name in _POSITIVE:
@@ -279,6 +295,10 @@ class SimConfig:
         except ValueError as exc:
             text = str(exc).removeprefix("ground_steps_m: ")
             raise ValueError(f"SimConfig.ground_steps_m: {text}") from exc
+        try:
+            self.faults  # noqa: B018  (validates the three fault parameters together)
+        except ValueError as exc:
+            raise ValueError(f"SimConfig.{exc}") from exc
         if round(self.dt_s * 1e9) < 1:
             raise ValueError("SimConfig.dt_s must be at least 1 ns")
         if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 100):
@@ -293,6 +313,11 @@ class SimConfig:
         return Terrain.from_parameters(
             self.ground_slope_deg, self.ground_slope_azimuth_deg, self.ground_steps_m
         )
+
+    @property
+    def faults(self) -> tuple[JointFault, ...]:
+        """The scheduled faults of ``fault_joints``, ``fault_kinds``, ``fault_times_s``."""
+        return faults_from_parameters(self.fault_joints, self.fault_kinds, self.fault_times_s)
 
     @property
     def legs(self) -> LegImpedance:
@@ -398,6 +423,9 @@ class SimState:
         default_factory=lambda: np.zeros(2, dtype=bool)
     )  # (2,) hemi within the leg stroke of the ground
     kinetic_energy_about_com_j: float = 0.0  # rotation + morphing motion [J]
+    joint_fault: NDArray[np.int8] = field(
+        default_factory=lambda: np.zeros(N_JOINTS, dtype=np.int8)
+    )  # (25,) ground truth: splitter_model.faults.FAULT_CODES per joint, 0 healthy
 
     def is_finite(self) -> bool:
         """Every number in the snapshot is finite."""
@@ -483,6 +511,13 @@ class Simulator:
         self._corner_dv: NDArray[np.float64] | None = None
         self._settled = True  # joints at rest on a resting target: no servo work
         self._zero_joints = np.zeros(N_JOINTS)
+        # Faults (splitter_model.faults): joints off their servo, the acceleration they have
+        # instead (locked 0, limp from the dynamics), each joint's fault code (0 healthy).
+        self._free = np.zeros(N_JOINTS, dtype=bool)
+        self._free_qdd = np.zeros(N_JOINTS)
+        self._fault_codes = np.zeros(N_JOINTS, dtype=np.int8)
+        self._limp: list[int] = []
+        self._pending_faults = sorted(config.faults, key=lambda f: (f.time_ns, f.joint_index))
         self._radii_cache: NDArray[np.float64] | None = None
         self._shape: Shape | None = self._kin.evaluate(self._q.tolist())
         self._shape_block: NDArray[np.float64] | None = None  # compiled shape, until needed
@@ -612,6 +647,62 @@ class Simulator:
         if self._kernels is not None and self._cmd_static:
             self._kernels.ws[kernels.WS_TARGET] = q
             self._kernels.ws[kernels.WS_TARGET_V] = 0.0
+
+    # --- faults ------------------------------------------------------------------
+    @property
+    def fault_codes(self) -> NDArray[np.int8]:
+        """Each joint's fault (``splitter_model.faults.FAULT_CODES``, 0 healthy), read-only."""
+        return _readonly(self._fault_codes)
+
+    def inject_fault(self, joint: str, kind: str) -> JointFault:
+        """``joint`` fails as ``kind`` (locked, limp) now; ValueError if invalid or failed already.
+
+        Locked: the joint stops at once and holds. Limp: it follows the dynamics with
+        zero torque (:mod:`.joint_faults`) within its range.
+        """
+        fault = JointFault(joint, kind, self._t_ns * 1e-9)
+        j = fault.joint_index
+        if self._fault_codes[j]:
+            raise ValueError(f"joint {joint!r} has failed already")
+        self._fault_codes[j] = FAULT_CODES[kind]
+        self._free[j] = True
+        self._free_qdd[j] = 0.0
+        if kind == LOCKED:
+            self._qd[j] = 0.0
+        elif kind == LIMP:
+            self._limp.append(j)
+        self._settled = False
+        if self._kernels is not None:
+            self._kernels.ws[kernels.WS_FREE] = self._free
+            self._kernels.ws[kernels.WS_FREE_QDD] = self._free_qdd
+        return fault
+
+    def _apply_faults(self) -> None:
+        """Inject the scheduled faults that are due, then the limp joints' accelerations."""
+        pending = self._pending_faults
+        while pending and pending[0].time_ns <= self._t_ns:
+            fault = pending.pop(0)
+            self.inject_fault(fault.joint, fault.kind)
+        if not self._limp:
+            return
+        if self._kernels is not None:
+            others = self._kernels.ws[kernels.WS_QDD]
+        else:
+            others = self._qdd
+        if self._settled:
+            others = self._zero_joints
+        self._free_qdd[self._limp] = limp_joint_accelerations(
+            self._kin,
+            self._q.tolist(),
+            self._qd.tolist(),
+            others.tolist(),
+            self._s[10:13],
+            limp=self._limp,
+            gyroscopic_sign=self._prm.gyroscopic_sign,
+        )
+        self._settled = False
+        if self._kernels is not None:
+            self._kernels.ws[kernels.WS_FREE_QDD] = self._free_qdd
 
     def command_jump_force(self, force_world_n: ArrayLike, hemi: str = "auto") -> None:
         """Jump thrust [N], world frame, pushed through ``hemi`` ("a", "b" or "auto").
@@ -908,6 +999,8 @@ class Simulator:
 
     def step(self) -> None:
         """Advance by one step ``dt``: actuators, then RK4 (sub-stepped near the ground)."""
+        if self._pending_faults or self._limp:
+            self._apply_faults()
         if self._kernels is not None:
             self._step_compiled()
             return
@@ -919,6 +1012,8 @@ class Simulator:
         else:
             target, target_v = self._servo_target()
             qdd = actuators.servo_acceleration(q, qd, target, target_v, lim, self._dt)
+            if self._free.any():
+                qdd = np.where(self._free, self._free_qdd, qdd)
             moving = bool(qd.any() or qdd.any())
         s = self._s
         shape0 = self._current_shape()
@@ -952,8 +1047,11 @@ class Simulator:
         if moving:
             clipped = np.clip(q, lim.position_min, lim.position_max)
             changed = not np.array_equal(clipped, q)
+            free = self._free if self._free.any() else None
+            if free is not None:  # a free joint stops at its range's end
+                qd[free & (clipped != q)] = 0.0
             q = clipped
-            changed |= actuators.snap_arrived(q, qd, target, target_v)
+            changed |= actuators.snap_arrived(q, qd, target, target_v, free)
             if changed:
                 shape0 = self._kin.evaluate(q.tolist(), qd.tolist(), qdd_list)
             self._settled = not qd.any() and not target_v.any() and bool(np.array_equal(q, target))
@@ -1173,6 +1271,7 @@ class Simulator:
             leg_force_n=_readonly(leg_hemi),
             in_thrust_range=_readonly([low[h] <= self.config.thrust_stroke_m for h in (0, 1)]),
             kinetic_energy_about_com_j=t_about,
+            joint_fault=_readonly(self._fault_codes),
         )
 
     def _radii(self, shape: Shape) -> NDArray[np.float64]:
