@@ -101,17 +101,16 @@ def faults_from_records(
             )
         except ValueError as exc:
             raise ValueError(f"{where}[{i}].{exc}") from None
-    seen: set[str] = set()
-    for i, fault in enumerate(faults):
-        if fault.joint in seen:
-            raise ValueError(f"{where}[{i}].joint: {fault.joint!r} fails twice")
-        seen.add(fault.joint)
-    return tuple(faults)
+    return _each_joint_once(faults, f"{where}[{{}}].joint")
 
 
-def fault_parameters(faults: Sequence[JointFault]) -> tuple[list[str], list[str], list[float]]:
-    """(joints, kinds, times [s]): flat lists for a node's parameters."""
-    return [f.joint for f in faults], [f.kind for f in faults], [float(f.time_s) for f in faults]
+def fault_parameters(faults: Sequence[JointFault]) -> dict[str, tuple]:
+    """The simulator's parameters ``fault_joints``, ``fault_kinds``, ``fault_times_s``."""
+    return {
+        "fault_joints": tuple(f.joint for f in faults),
+        "fault_kinds": tuple(f.kind for f in faults),
+        "fault_times_s": tuple(float(f.time_s) for f in faults),
+    }
 
 
 def faults_from_parameters(
@@ -131,9 +130,14 @@ def faults_from_parameters(
         except ValueError as exc:
             field, _, reason = str(exc).partition(": ")
             raise ValueError(f"{names.get(field, field)}[{i}]: {reason}") from None
+    return _each_joint_once(faults, "fault_joints[{}]")
+
+
+def _each_joint_once(faults: list[JointFault], where: str) -> tuple[JointFault, ...]:
+    """``faults`` as a tuple; ValueError at ``where.format(i)`` when a joint fails twice."""
     seen: set[str] = set()
     for i, fault in enumerate(faults):
         if fault.joint in seen:
-            raise ValueError(f"fault_joints[{i}]: {fault.joint!r} fails twice")
+            raise ValueError(f"{where.format(i)}: {fault.joint!r} fails twice")
         seen.add(fault.joint)
     return tuple(faults)

@@ -79,7 +79,9 @@ def test_a_limp_knee_stops_at_its_range_end_and_loses_energy_there() -> None:
 
 
 def test_compiled_and_python_limp_flights_agree() -> None:
-    runs = [_run(_flight({"hemi_b_z_neg_hip_pitch": "limp"}, compiled=c), 0.4) for c in (True, False)]
+    runs = [
+        _run(_flight({"hemi_b_z_neg_hip_pitch": "limp"}, compiled=c), 0.4) for c in (True, False)
+    ]
     compiled, python = runs
     if not _flight({}).compiled:
         pytest.skip("no compiled kernels on this machine")

@@ -41,7 +41,7 @@ from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
 from splitter_bringup.scenario.graph_config import flies_on_estimates, gait_parameters
 from splitter_bringup.scenario.simulation import simulator_tick
-from splitter_ik.core.allocator_tick import AllocatorTick
+from splitter_ik.core.allocator_tick import AllocatorTick, AllocatorTickSettings
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import ControllerConfig, MorphingController
@@ -126,6 +126,7 @@ def run_closed_loop(
     duration_s: float | None = None,
     estimation: EstimatorConfig | None = None,
     estimator: bool | None = None,
+    fault_handling: bool = True,
 ) -> RunSeries:
     """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
 
@@ -137,8 +138,11 @@ def run_closed_loop(
     flight estimator (``estimation`` its parameters, default the scenario's) as the graph's do
     (:func:`~splitter_bringup.scenario.graph_config.flies_on_estimates`), unless
     ``estimator`` says otherwise (False: they read the gyro and the simulator's inertia
-    as they are, and do not lead their commands through the lag). The series records
-    the true state.
+    as they are, and do not lead their commands through the lag). ``fault_handling``
+    False: the allocator neither detects faulty joints nor re-plans without them. The
+    series records the true state, the simulator's faults (``joint_fault``, codes of
+    ``splitter_model.faults``) and the detections (``joint_detected``: 1 from the tick a
+    joint is found faulty).
     """
     model = model or RobotModel()
     estimated = flies_on_estimates(scenario) if estimator is None else bool(estimator)
@@ -154,11 +158,13 @@ def run_closed_loop(
                 duration_s=duration_s,
                 estimation=estimation,
                 estimator=estimator,
+                fault_handling=fault_handling,
             )
     sim = simulator_tick(scenario, model, CONTROL_PERIOD_NS / NS_PER_S)
     gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
     mpc_tick = MpcTick(controller, MpcTickSettings(estimated_masses=estimated))
-    allocator = AllocatorTick(model)  # starts, as its node, from the first measured inertia
+    # starts, as its node, from the first measured inertia
+    allocator = AllocatorTick(model, settings=AllocatorTickSettings(fault_handling=fault_handling))
     estimation = scenario.estimator if estimation is None else estimation
     flight = EstimatorTick(model, estimation, CONTROL_PERIOD_NS) if estimated else None
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
@@ -238,10 +244,15 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
+            if allocator.joint_states(t, state.joint_position) or allocator.remaining:
+                remaining = allocator.remaining.reachable(model)  # /splitter/joint_health
+                controller.set_radius_bounds(remaining.radius_min_m, remaining.radius_max_m)
             commanded = allocator.lockstep_tick(t, inertia, rate, setpoint)
             for allocation in commanded.commands:  # one per tick in lockstep
                 sim.command_joints(t, allocation.joint_position, allocation.joint_velocity)
         _record(rec, state, setpoint, solve, counts)
+        rec["joint_fault"].append(state.joint_fault)
+        rec["joint_detected"].append(_detected(allocator.health.faulty_joints))
         phases.append(phase_name)
         if step < n_steps:
             sim.step()
@@ -294,7 +305,15 @@ _RECORDED = (
     "solve_cost",
     "failures",
     "deadline_misses",
+    "joint_fault",
+    "joint_detected",
 )
+
+
+def _detected(joints: frozenset[int]) -> np.ndarray:
+    out = np.zeros(25)
+    out[list(joints)] = 1.0
+    return out
 
 
 def _record(rec: dict[str, list], state, setpoint, solve: dict, counts: dict) -> None:
@@ -350,6 +369,8 @@ def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSerie
             "mpc_cost": a["solve_cost"],
             "mpc_failures": a["failures"],
             "mpc_deadline_misses": a["deadline_misses"],
+            "joint_fault": a["joint_fault"],  # (n, 25) simulator's truth: 0 ok, 1 locked, 2 limp
+            "joint_detected": a["joint_detected"],  # (n, 25) 1: the allocator found it faulty
         },
     )
 

@@ -29,6 +29,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from splitter_model.faults import JointFault, faults_from_records
 from splitter_model.model import gravity_from_name
 from splitter_model.terrain import FLAT, Step, Terrain
 from splitter_mpc.core.estimator import EstimatorConfig
@@ -145,6 +146,8 @@ class Scenario:
     # the ground (splitter_model.terrain): level z = 0 unless the scenario's ``ground``
     terrain: Terrain = FLAT
     friction_coefficient: float = 0.8  # [-] of the ground (SimConfig's field)
+    # joints and the reel that fail in the run (splitter_model.faults); default: none
+    faults: tuple[JointFault, ...] = ()
     # how the simulated robot differs from the nominal one its controllers assume
     # (masses, gyro noise and bias, actuator lag); default: not at all
     robot_errors: RobotErrors = field(default_factory=RobotErrors)
@@ -330,6 +333,16 @@ def _jumps(data: Any) -> tuple[JumpSpec, ...]:
     return tuple(out)
 
 
+def _faults(data: Any) -> tuple[JointFault, ...]:
+    """The scenario's ``faults``: ``[{joint, kind, time_s}]``; errors name the field."""
+    if data is None:
+        return ()
+    try:
+        return faults_from_records(data, "faults")
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
 def _leg_cone(data: Mapping[str, Any]) -> float:
     """``leg_cone_half_angle_deg`` [deg] in [1, 89] (SimConfig's range), default 60."""
     cone = _positive(data, "leg_cone_half_angle_deg", SimConfig.leg_cone_half_angle_deg)
@@ -389,6 +402,7 @@ SCENARIO_FIELDS = (
     "findings",
     "robot_errors",
     "estimator",
+    "faults",
 )
 INITIAL_FIELDS = (
     "angular_velocity_rad_s",
@@ -572,6 +586,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         leg_cone_half_angle_deg=_leg_cone(d),
         terrain=terrain,
         friction_coefficient=friction,
+        faults=_faults(d.get("faults")),
         robot_errors=_robot_errors(d.get("robot_errors")),
         estimator=_estimator(d.get("estimator")),
         paper=dict(d.get("paper", {}) or {}),

@@ -14,6 +14,7 @@ from typing import Any
 
 from splitter_bag.core.node_parameters import parameter_file_text
 from splitter_bringup.scenario.definition import Scenario
+from splitter_model.faults import fault_parameters
 from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.gait import jump_plan_parameters
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
@@ -113,6 +114,7 @@ def simulator_parameters(
         "compliant_legs": bool(scenario.compliant_legs),
         "leg_cone_half_angle_deg": float(scenario.leg_cone_half_angle_deg),
         **ground_parameters(scenario),
+        **{name: list(values) for name, values in fault_parameters(scenario.faults).items()},
         "friction_coefficient": float(scenario.friction_coefficient),
         "initial_position_m": _floats(scenario.initial_position_m),
         "initial_velocity_m_s": _floats(scenario.initial_velocity_m_s),

@@ -10,6 +10,7 @@ for a closed loop that calls it directly (``splitter_bringup.run.library``).
 from __future__ import annotations
 
 from splitter_bringup.scenario.definition import Scenario
+from splitter_model.faults import fault_parameters
 from splitter_model.model import RobotModel
 from splitter_sim.core.settings import SimulatorSettings
 from splitter_sim.core.simulator import SimConfig
@@ -49,6 +50,7 @@ def sim_config(scenario: Scenario) -> SimConfig:
         ground_slope_deg=float(scenario.terrain.slope_deg),
         ground_slope_azimuth_deg=float(scenario.terrain.slope_azimuth_deg),
         ground_steps_m=scenario.terrain.steps_flat(),
+        **fault_parameters(scenario.faults),
     )
 
 

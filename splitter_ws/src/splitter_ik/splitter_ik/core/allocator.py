@@ -57,8 +57,10 @@ from splitter_ik.core.tether import (
     reeling_tether_tension,
 )
 from splitter_model.actuators import TETHER_INDEX
+from splitter_model.joints import LIMB_JOINTS, limb_joints
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
+from splitter_model.redundancy import RemainingShape
 from splitter_msgs_py.core.parameter_fields import FRACTION, parameter_field
 
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
@@ -236,6 +238,12 @@ class TetherLimbAllocator:
         self._state: _State | None = None
         self._previous: _State | None = None
         self._tether_targets: list[tuple[int, float]] = []  # (t_ns, L) setpoints in the window
+        # After a fault (splitter_model.redundancy): what remains, where the joints are
+        # (measured), and the joints the drive coordinates are read from.
+        self._remaining: RemainingShape | None = None
+        self._remaining_set = None
+        self._measured_q = np.zeros(25)
+        self._drive_index = [TETHER_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]
         if initial_radii_m is not None:
             radii = np.asarray(initial_radii_m, dtype=float)
             if radii.shape != (3,) or not np.all(np.isfinite(radii)):
@@ -288,6 +296,91 @@ class TetherLimbAllocator:
         self._state, self._previous = fresh._state, None
         self._tether_targets = []
 
+    # --- faults ------------------------------------------------------------------
+    def set_remaining(
+        self, remaining: RemainingShape | None, measured_joint_position: ArrayLike
+    ) -> None:
+        """Re-plan with what a fault left (None: all healthy); call every tick after one.
+
+        Held limbs are commanded where ``measured_joint_position`` (25) has them, their
+        mirrors copy them, the free limbs carry the rest of each radius; a locked reel
+        holds the tether where it stopped (:mod:`splitter_model.redundancy`).
+        """
+        q = np.asarray(measured_joint_position, dtype=float)
+        if q.shape != (25,) or not np.all(np.isfinite(q)):
+            raise ValueError(
+                f"measured joint positions must be 25 finite numbers, got {q.tolist()}"
+            )
+        if remaining is not None and remaining.roles.healthy:
+            remaining = None
+        changed = remaining != self._remaining
+        self._remaining = remaining
+        self._measured_q = q.copy()
+        if not changed:
+            return
+        self._remaining_set = None if remaining is None else remaining.reachable(self.model)
+        index = [TETHER_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]
+        if remaining is not None:
+            for axis in (1, 2):
+                free = remaining.roles.free_limbs(axis)
+                if free:
+                    index[axis] = limb_joints(free[0]).start + LIMB_JOINTS.index("knee")
+        self._drive_index = index
+        for state in (self._state, self._previous):  # read the drive from its new joints
+            if state is None:
+                continue
+            state.drive[:] = state.joint_position[index]
+            if remaining is not None and remaining.roles.reel_locked:
+                state.drive[0] = remaining.tether_length_m
+                state.drive_rate[0] = 0.0
+
+    def _fault_target(self, requested: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+        """(drive target, saturated) of a setpoint in the reachable set that remains."""
+        remaining, reachable = self._remaining, self._remaining_set
+        assert remaining is not None and reachable is not None
+        s = reachable.project(requested)
+        saturated = not reachable.contains(requested)
+        target = np.empty(3)
+        target[0] = (
+            2.0 * float(np.sqrt(s[0]))
+            if remaining.tether_length_m is None
+            else remaining.tether_length_m
+        )
+        state = self._state
+        for axis in (1, 2):
+            free = remaining.free_radius_m(axis, float(s[axis]))
+            if free is None:  # no free limb: hold
+                target[axis] = float(state.drive[axis]) if state is not None else 1.0
+            else:
+                lo, hi = self.model.limb_radius_min_m, self.model.limb_radius_max_m
+                target[axis] = knee_from_radius(self.model, min(max(free, lo), hi))
+        return target, saturated
+
+    def _fault_joint_positions(self, drive: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The 25 joint positions of a drive after a fault: free limbs by IK, the others copied."""
+        remaining = self._remaining
+        assert remaining is not None
+        reach = self.model.limb_reach_m
+        radii = np.array([drive[0] / 2.0, reach(float(drive[1])), reach(float(drive[2]))])
+        q = self._joint_positions(radii)
+        q[TETHER_INDEX] = drive[0]
+        measured = self._measured_q
+        for limb in remaining.roles.held:
+            q[limb_joints(limb)] = measured[limb_joints(limb)]
+        for mirror, limb in remaining.roles.mirrors:
+            q[limb_joints(mirror)] = measured[limb_joints(limb)]
+        return np.clip(q, self._q_min, self._q_max)
+
+    def _effective_radii(self, drive: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(r_x, r_y, r_z) [m] of a drive, the y and z radii effective after a fault."""
+        radii = self._radii_from_drive(drive)
+        remaining = self._remaining
+        if remaining is None:
+            return radii
+        for axis in (1, 2):
+            radii[axis] = np.sqrt(remaining.radius_squared(axis, float(radii[axis])))
+        return radii
+
     # --- the tick ----------------------------------------------------------------
     def allocate(
         self,
@@ -316,7 +409,11 @@ class TetherLimbAllocator:
             if w.shape != (3,) or not np.all(np.isfinite(w)):
                 raise ValueError(f"angular velocity must be 3 finite numbers, got {w.tolist()}")
         start = self._start_state(t_ns)
-        target = self._drive_from_radii(projection.radii_m)
+        saturated = projection.saturated
+        if self._remaining is not None and start is not None:
+            target, saturated = self._fault_target(requested)
+        else:
+            target = self._drive_from_radii(projection.radii_m)
         dt = self.config.control_period_s
         if start is None:  # first tick without initial radii: at the target, at rest
             state = self._rest_state(t_ns, projection.radii_m)
@@ -358,9 +455,12 @@ class TetherLimbAllocator:
                     target_velocity=tether_velocity if i == 0 else 0.0,
                     lower_braking_max=lower_brake if i == 0 else None,
                 )
-            radii = self._radii_from_drive(drive)
-            q = self._joint_positions(radii)
-            drive = q[[TETHER_INDEX, KNEE_Y_INDEX, KNEE_Z_INDEX]].copy()
+            if self._remaining is None:
+                radii = self._radii_from_drive(drive)
+                q = self._joint_positions(radii)
+            else:
+                q = self._fault_joint_positions(drive)
+            drive = q[self._drive_index].copy()
             rate = (drive - start.drive) / dt
             state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
             here = start
@@ -370,7 +470,7 @@ class TetherLimbAllocator:
             rate_limited = bool(np.any(np.abs(drive - target) > _RATE_LIMIT_TOLERANCE))
             radius_x_accel = float(rate[0] - start.drive_rate[0]) / (2.0 * dt)
         self._previous, self._state = start, state
-        radii = self._radii_from_drive(here.drive)
+        radii = self._effective_radii(here.drive)
         if w is None:
             tension = required = math.nan
         else:
@@ -383,7 +483,7 @@ class TetherLimbAllocator:
             radii_m=_frozen(radii),
             requested_inertia_kg_m2=_frozen(requested),
             achieved_inertia_kg_m2=_frozen(principal_inertia(self.model, radii)),
-            saturated=projection.saturated,
+            saturated=saturated,
             rate_limited=rate_limited,
             tension_n=tension,
             required_tension_n=required,

@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead, CommandLeadConfig
+from splitter_ik.core.joint_health import Detection, JointHealthMonitor
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import (
@@ -51,6 +52,7 @@ from splitter_model.model import (
     angular_velocity_after_morphing,
     principal_inertia,
 )
+from splitter_model.redundancy import RemainingShape, remaining_shape
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.parameter_fields import parameter_field
@@ -87,6 +89,12 @@ class AllocatorTickSettings:
     )
     diagnostics_period_s: float = parameter_field(  # [s]
         0.1, "diagnostics period in simulated time [s]", bounds=(1e-3, 100.0), live=True
+    )
+    fault_handling: bool = parameter_field(
+        True,
+        "detect faulty joints from /splitter/joint_states against the commands and re-plan "
+        "with what remains (splitter_ik.core.joint_health, splitter_model.redundancy); "
+        "false: watch nothing, plan as if every joint worked",
     )
 
 
@@ -189,6 +197,8 @@ class AllocatorTick:
         # [kg m^2] inertia the commands plan at their stamps (the last second), to
         # predict the body rate at a command stamped ahead of its input
         self._planned_inertia: dict[int, NDArray[np.float64]] = {}
+        self.health = JointHealthMonitor(enabled=settings.fault_handling)
+        self.remaining: RemainingShape | None = None  # what a fault left, once detected
 
     def configure(
         self, config: AllocatorConfig, settings: AllocatorTickSettings, lead: CommandLeadConfig
@@ -289,6 +299,27 @@ class AllocatorTick:
                 _LOG.warning("t = %.3f s: %s", t_ns * 1e-9, out.rejected or out.refused)
         return outputs[-1]
 
+    def joint_states(self, t_ns: int, position: ArrayLike) -> list[Detection]:
+        """Measured joint positions (25) at ``t_ns``: the joints newly found faulty.
+
+        After a detection the allocator re-plans with what remains (held limbs where
+        these positions have them, from every call on).
+        """
+        q = np.asarray(position, dtype=float)
+        new = self.health.on_measurement(t_ns, q)
+        faulty = self.health.faulty_joints
+        if faulty:
+            self.remaining = remaining_shape(self.model, faulty, q)
+            self._ensure_allocator().set_remaining(self.remaining, q)
+        for detection in new:
+            _LOG.warning(
+                "t = %.3f s: joint %s is faulty (%s): re-planning without it",
+                t_ns * 1e-9,
+                detection.joint_name,
+                detection.symptom,
+            )
+        return new
+
     # --- answering -------------------------------------------------------------------
     def _ensure_allocator(self, radii: ArrayLike | None = None) -> TetherLimbAllocator:
         if self.allocator is None:
@@ -352,6 +383,7 @@ class AllocatorTick:
         )
         self.last_allocation = allocation
         self._last_command_ns = t_ns
+        self.health.on_command(t_ns, allocation.joint_position, allocation.joint_velocity)
         if self.lead.lead_ns > 0:
             planned = self._planned_inertia
             planned[t_ns] = allocation.achieved_inertia_kg_m2

@@ -41,7 +41,6 @@ from splitter_model.model import (
     radii_from_inertia,
 )
 from splitter_mpc.core.gait import AttitudeReference, GaitPhase, propagate_attitude
-from splitter_mpc.core.limits import axis_inertia_range
 from splitter_mpc.core.mpc import (
     NS_PER_S,
     InertialMorphingMpc,
@@ -267,6 +266,13 @@ class MorphingController(Closable):
         solve (an estimate; same geometry)."""
         self.mpc.set_mass_model(model, hemi_inertia_kg_m2)
 
+    def set_radius_bounds(
+        self, radius_min_m: ArrayLike | None, radius_max_m: ArrayLike | None
+    ) -> None:
+        """Plan within the radius bounds [m] a fault left (``splitter_model.redundancy``);
+        None: the model's."""
+        self.mpc.set_radius_bounds(radius_min_m, radius_max_m)
+
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""
         self._failures_to_inject += int(count)
@@ -441,7 +447,7 @@ class MorphingController(Closable):
         if speed < 1e-9:
             return math.nan
         momentum = float(np.linalg.norm(np.asarray(inertia_kg_m2) * np.asarray(w)))
-        _, largest = axis_inertia_range(self.mpc.limits, w_ref / speed)
+        _, largest = self.mpc.reachable.axis_inertia_range(w_ref / speed)
         return momentum / largest
 
     def spin_reference(self) -> NDArray[np.float64]:

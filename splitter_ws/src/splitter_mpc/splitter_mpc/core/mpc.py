@@ -96,8 +96,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.model import RobotModel
-from splitter_model.reachable import inertia_map
-from splitter_mpc.core.limits import MorphingLimits, axis_inertia_range, morphing_limits
+from splitter_model.reachable import ReachableSet, inertia_map
+from splitter_mpc.core.limits import MorphingLimits, morphing_limits
 from splitter_mpc.core.ocp import (
     INTEGRATORS,
     N_MEASURED,
@@ -315,6 +315,8 @@ class InertialMorphingMpc(Closable):
         self.column_scale = np.ones(3)
         self.state_offset = np.zeros(3)
         self.own_inertia = np.zeros(3)  # [kg m^2] 2 J, both bodies
+        # (r_min, r_max) [m] of the shapes that remain after a fault; None: the model's
+        self.radius_bounds_m: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     def set_mass_model(
         self, model: RobotModel, hemi_inertia_kg_m2: ArrayLike = (0.0, 0.0, 0.0)
@@ -352,6 +354,38 @@ class InertialMorphingMpc(Closable):
         self.state_offset = np.linalg.solve(built, self.own_inertia)
         s = self.settings
         self.limits = morphing_limits(model, s.dt_s, s.tension_min_n, s.radius_rate_scale)
+
+    def set_radius_bounds(
+        self, radius_min_m: ArrayLike | None, radius_max_m: ArrayLike | None
+    ) -> None:
+        """Plan within these radius bounds (r_x, r_y, r_z) [m] from the next solve: the
+        reachable set that remains after a fault (``splitter_model.redundancy``); None:
+        the model's. ValueError unless 0 < min < max, finite."""
+        if radius_min_m is None or radius_max_m is None:
+            self.radius_bounds_m = None
+            return
+        lo = np.asarray(radius_min_m, dtype=float).reshape(3)
+        hi = np.asarray(radius_max_m, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(0.0 < lo)):
+            raise ValueError(f"radius bounds must be finite and > 0, got {lo}, {hi}")
+        if not np.all(lo < hi):
+            raise ValueError(f"radius bounds need min < max, got {lo}, {hi}")
+        self.radius_bounds_m = (lo, hi)
+
+    @property
+    def reachable(self) -> ReachableSet:
+        """The reachable set planned within: the mass model's, within any fault's radius bounds."""
+        base = self.limits.reachable
+        if self.radius_bounds_m is None:
+            return base
+        lo, hi = self.radius_bounds_m
+        return replace(
+            base,
+            radius_min_m=lo,
+            radius_max_m=hi,
+            inertia_min_kg_m2=base.inertia(lo**2),
+            inertia_max_kg_m2=base.inertia(hi**2),
+        )
 
     @property
     def horizon(self) -> int:
@@ -443,17 +477,17 @@ class InertialMorphingMpc(Closable):
         weights = request.weights.per_stage(self.settings.weights_step_ratio)
         measured = np.asarray(request.state, dtype=float).reshape(N_MEASURED)
         x0 = self.ocp.state_from_measurement(
-            measured[0:3], measured[3:7], measured[7:10] - self.own_inertia, self.limits.reachable
+            measured[0:3], measured[3:7], measured[7:10] - self.own_inertia, self.reachable
         )
         scale, offset = self.column_scale, self.state_offset
         x0[self.ocp.state.radii_sq] *= scale
         x0[self.ocp.state.radii_sq] += offset
         z0, lam_g0, lam_z0 = self._warm_start(int(request.t_ns), x0)
-        lbz, ubz = self.ocp.variable_bounds(x0, scale, offset)
+        lbz, ubz = self.ocp.variable_bounds(x0, scale, offset, self.radius_bounds_m)
         lbg, ubg = self.ocp.constraint_bounds(x0, scale, offset)
         momentum_norm = float(np.linalg.norm(self.ocp.inertia_of(x0) * x0[0:3]))
         axis, _ = momentum_target(request.w_ref_rad_s, momentum_norm)
-        lowest, highest = axis_inertia_range(self.limits, axis)
+        lowest, highest = self.reachable.axis_inertia_range(axis)
         own = float(np.asarray(axis) ** 2 @ self.own_inertia)  # e' (2 J) e [kg m^2]
         nominal = request.nominal_inertia_kg_m2
         return ProblemInstance(

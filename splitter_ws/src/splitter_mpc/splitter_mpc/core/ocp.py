@@ -465,14 +465,20 @@ class MorphingOcp:
         x_init: ArrayLike,
         column_scale: ArrayLike = (1.0, 1.0, 1.0),
         state_offset: ArrayLike = (0.0, 0.0, 0.0),
+        radius_bounds_m: tuple[ArrayLike, ArrayLike] | None = None,
     ) -> tuple[NDArray, NDArray]:
         """(lbz, ubz): x_0 = x_init, radius bounds, radius-rate bounds, slack >= 0.
 
         ``column_scale`` D and ``state_offset`` c [m^2]: the states carry ``D s + c`` (a
         robot with other masses and hemi bodies with their own moments,
         :meth:`~splitter_mpc.core.mpc.InertialMorphingMpc.set_mass_model`).
+        ``radius_bounds_m``: (r_min, r_max) [m] that replace the model's (after a fault).
         """
         lim = self.limits
+        if radius_bounds_m is None:
+            r_min, r_max = lim.reachable.radius_min_m, lim.reachable.radius_max_m
+        else:
+            r_min, r_max = (np.asarray(b, dtype=float) for b in radius_bounds_m)
         d = np.asarray(column_scale, dtype=float)
         c = np.asarray(state_offset, dtype=float)
         n, nx, radii_sq = self.horizon, self.state.nx, self.state.radii_sq
@@ -480,12 +486,12 @@ class MorphingOcp:
         r_now = np.sqrt((x0[radii_sq] - c) / d)
         # both r_k and r_{k+1} are >= the smallest radius reachable by stage k + 1
         k = np.arange(1, n + 1)[:, None]
-        r_low = np.maximum(lim.radius_min_m, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
+        r_low = np.maximum(r_min, r_now - lim.radius_rate_max_m_s * k * self.dt_s)
         rate = 2.0 * lim.radius_step_max_m * r_low * d  # (n, 3) [m^2] per step
         lo = np.full((n, nx + NU), -np.inf)
         hi = np.full((n, nx + NU), np.inf)
-        s_min = lim.reachable.radius_squared_min_m2 * d + c
-        s_max = lim.reachable.radius_squared_max_m2 * d + c
+        s_min = r_min**2 * d + c
+        s_max = r_max**2 * d + c
         lo[:, radii_sq] = s_min
         hi[:, radii_sq] = s_max
         lo[:, nx : nx + 3] = -rate
