@@ -17,6 +17,18 @@ sibling at 0.11 m, r_x 2.8 m: ``I_xy`` = 1.2 kg m^2, the spin axis 0.5 deg off b
 at r_x 0.5 m, 3.6 deg). The remaining limbs along that axis are *free*: they move
 together, as before.
 
+**The held limb's pose.** Its working joints fold it out of the way: a limb
+whose knee failed turns its hip pitch to :data:`FOLD_STOP_PITCH_RAD`; one
+whose hip pitch (or abduction) failed folds its knee to the stop. Why: in a
+spin across the tether (the goal, and any spin the tether carries) the load on
+a tip is the centrifugal pull along the tether, outward (``v``); a limp knee
+swings its shank towards ``v``, to ``hip_pitch + knee = pi / 2``. With the hip
+pitch at -1.35 rad that is beyond the folded stop (2.6 rad): the pull holds the
+knee folded there instead of leaving it a pendulum (an undamped one: a limp
+joint has no friction to stop it). A limp hip pitch keeps swinging, but with the
+knee folded its tip is 0.11 m from the hip, four times less than stretched, and
+its mirror follows it.
+
 **The effective radius.** The moments depend on the limbs of one axis only
 through the mean of their squared reaches (paper eq. 2, ``4 m_y r_y^2``), so the
 model keeps its form with ``r_y^2`` the mean over the four y limbs: with held and
@@ -53,6 +65,9 @@ from splitter_model.kinematics import limb_forward_kinematics
 from splitter_model.model import RobotModel, principal_inertia
 from splitter_model.reachable import ReachableSet, reachable_set
 
+# [rad] hip pitch of a limb whose knee failed: the radial pitch of the folded knee
+# (-1.30 rad for the paper's limb) less 0.05 rad, so a limp knee rests on its fold stop
+FOLD_STOP_MARGIN_RAD = 0.05
 # [m] half-width kept around a radius that cannot move (a locked reel, an axis with no
 # free limb): the MPC's bounds stay a box with an interior
 FIXED_RADIUS_TOLERANCE_M = 1e-3
@@ -112,6 +127,30 @@ class LimbRoles:
         )
 
 
+def fold_stop_pitch_rad(model: RobotModel) -> float:
+    """Hip pitch [rad] that leaves a limp knee resting on its folded stop (module doc)."""
+    from splitter_model.kinematics import radial_limb_joint_angles
+
+    folded = radial_limb_joint_angles(model, model.limb_radius_min_m)
+    return float(folded[1]) - FOLD_STOP_MARGIN_RAD
+
+
+def held_limb_command(
+    model: RobotModel, limb: int, measured: ArrayLike, moving_faults: Iterable[int]
+) -> NDArray[np.float64]:
+    """Joint command (3) of a held limb: where it is, folded by its working joints when one of
+    its joints in ``moving_faults`` (failed joints that move: limp) would swing it."""
+    q = np.asarray(measured, dtype=float).reshape(3).copy()
+    first = limb_joints(limb).start
+    moving = {j - first for j in moving_faults if limb_of_joint(j) == limb}
+    hip_pitch, knee = LIMB_JOINTS.index("hip_pitch"), LIMB_JOINTS.index("knee")
+    if knee in moving:
+        q[hip_pitch] = fold_stop_pitch_rad(model)
+    elif hip_pitch in moving:
+        q[knee] = model.knee_max_rad
+    return q
+
+
 def limb_reaches_m(model: RobotModel, joint_positions: ArrayLike) -> NDArray[np.float64]:
     """Hip-to-tip distance (8,) [m] of every limb at the joint positions (25)."""
     q = np.asarray(joint_positions, dtype=float)
@@ -132,6 +171,8 @@ class RemainingShape:
     """
 
     roles: LimbRoles
+    failed_joints: frozenset[int] = frozenset()  # JOINT_NAMES indices
+    moving_faults: frozenset[int] = frozenset()  # those that move (limp): folded away
     held_reach_m: tuple[tuple[int, float], ...] = ()  # (held limb, reach [m])
     tether_length_m: float | None = None
 
@@ -188,15 +229,21 @@ class RemainingShape:
 
 
 def remaining_shape(
-    model: RobotModel, failed_joints: Iterable[int], joint_positions: Sequence[float]
+    model: RobotModel,
+    failed_joints: Iterable[int],
+    joint_positions: Sequence[float],
+    moving_faults: Iterable[int] = (),
 ) -> RemainingShape:
     """The :class:`RemainingShape` of the failed joints, the held limbs where ``joint_positions``
-    (25, measured) put them."""
+    (25, measured) put them; ``moving_faults``: the failed joints that move (limp)."""
+    failed_joints = frozenset(failed_joints)
     roles = LimbRoles.from_failed_joints(failed_joints)
     q = np.asarray(joint_positions, dtype=float)
     reach = limb_reaches_m(model, q)
     return RemainingShape(
         roles,
+        frozenset(failed_joints),
+        frozenset(moving_faults),
         tuple((limb, float(reach[limb])) for limb in sorted(roles.held)),
         float(q[TETHER_INDEX]) if roles.reel_locked else None,
     )

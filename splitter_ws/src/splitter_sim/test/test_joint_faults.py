@@ -147,3 +147,36 @@ def test_fault_parameters_round_trip() -> None:
     )
     assert config.faults == faults
     assert faults_from_parameters([], [], []) == ()
+
+
+def test_a_limp_knee_rests_on_its_fold_stop_when_the_hip_is_pitched_to_it() -> None:
+    """``splitter_model.redundancy``: in a spin across the tether the pull on a tip is
+    along the tether; with the hip at the fold-stop pitch a limp knee folds onto its stop
+    and stays there, where with the radial pitch it swings as a pendulum."""
+    from splitter_model.redundancy import fold_stop_pitch_rad
+
+    knee = JOINT_INDEX["hemi_a_y_pos_knee"]
+    pitch = JOINT_INDEX["hemi_a_y_pos_hip_pitch"]
+    spin = InitialState(
+        position_m=(0.0, 0.0, 10.0),
+        angular_velocity_rad_s=(0.0, 1.1, 0.0),
+        radii_m=(2.8, 0.25, 0.25),
+    )
+    for folded in (True, False):
+        config = SimConfig(
+            ground_contact=False,
+            fault_joints=("hemi_a_y_pos_knee",),
+            fault_kinds=("limp",),
+            fault_times_s=(0.0,),
+        )
+        sim = Simulator(MODEL, config, spin)
+        command = np.array(sim.state().joint_position)
+        if folded:
+            command[pitch] = fold_stop_pitch_rad(MODEL)
+        sim.command_joints(command)
+        states = _run(sim, 4.0)
+        last = np.array([s.joint_position[knee] for s in states[-200:]])  # the last second
+        if folded:
+            assert np.all(last == MODEL.knee_max_rad)
+        else:
+            assert last.max() - last.min() > 0.1  # [rad] still swinging

@@ -60,7 +60,7 @@ from splitter_model.actuators import TETHER_INDEX
 from splitter_model.joints import LIMB_JOINTS, limb_joints
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
-from splitter_model.redundancy import RemainingShape
+from splitter_model.redundancy import RemainingShape, held_limb_command
 from splitter_msgs_py.core.parameter_fields import FRACTION, parameter_field
 
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
@@ -68,6 +68,9 @@ KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
 _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
 _PATH_FRACTIONS = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: the target, 1: the tether now
 _PATH_FRACTIONS.flags.writeable = False
+# [rad/s] a held limb folds, and its mirror follows it, at this speed: smooth enough that
+# the servos track it within ~0.01 rad (the detector's "not following" margin is 0.05)
+HELD_LIMB_SPEED_RAD_S = 2.0
 _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
 
 
@@ -365,10 +368,22 @@ class TetherLimbAllocator:
         q = self._joint_positions(radii)
         q[TETHER_INDEX] = drive[0]
         measured = self._measured_q
+        failed = remaining.failed_joints
+        before = self._state.joint_position if self._state is not None else measured
+        step = HELD_LIMB_SPEED_RAD_S * self.config.control_period_s
         for limb in remaining.roles.held:
-            q[limb_joints(limb)] = measured[limb_joints(limb)]
+            held = held_limb_command(
+                self.model, limb, measured[limb_joints(limb)], remaining.moving_faults
+            )
+            q[limb_joints(limb)] = held
         for mirror, limb in remaining.roles.mirrors:
-            q[limb_joints(mirror)] = measured[limb_joints(limb)]
+            q[limb_joints(mirror)] = q[limb_joints(limb)]
+        for limb in remaining.roles.copied:  # towards their poses at a speed servos track
+            joints = limb_joints(limb)
+            q[joints] = before[joints] + np.clip(q[joints] - before[joints], -step, step)
+        for joint in failed:  # what it is: its servo does not act
+            if joint != TETHER_INDEX:
+                q[joint] = measured[joint]
         return np.clip(q, self._q_min, self._q_max)
 
     def _effective_radii(self, drive: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead, CommandLeadConfig
-from splitter_ik.core.joint_health import Detection, JointHealthMonitor
+from splitter_ik.core.joint_health import NOT_FOLLOWING, Detection, JointHealthMonitor
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import (
@@ -309,7 +309,8 @@ class AllocatorTick:
         new = self.health.on_measurement(t_ns, q)
         faulty = self.health.faulty_joints
         if faulty:
-            self.remaining = remaining_shape(self.model, faulty, q)
+            moving = [j for j, s in self.health.symptoms.items() if s == NOT_FOLLOWING]
+            self.remaining = remaining_shape(self.model, faulty, q, moving)
             self._ensure_allocator().set_remaining(self.remaining, q)
         for detection in new:
             _LOG.warning(

@@ -16,6 +16,10 @@ and the commands the allocator sent:
   ``envelope_margin`` outside the range of the commands of the last
   ``envelope_window_s``.
 
+A joint found stuck that later moves by more than ``envelope_margin`` from where
+it was found (its commands then hold it there) is limp after all: its symptom
+becomes "not following" (the fault is the same, its handling differs).
+
 A joint locked while its command stays put shows nothing: there is nothing to
 see until it is asked to move. A detection is latched (a broken joint does not
 heal in flight). Thresholds are per unit: limb joints [rad], the tether [m].
@@ -129,11 +133,17 @@ class JointHealthMonitor:
         self._commands: deque[tuple[int, NDArray[np.float64], NDArray[np.float64]]] = deque()
         self._measured: deque[tuple[int, NDArray[np.float64]]] = deque()
         self._detections: dict[int, Detection] = {}
+        self._found_at: dict[int, float] = {}  # where each stuck joint was found
 
     @property
     def detections(self) -> tuple[Detection, ...]:
         """Every joint found faulty so far, in the order found."""
         return tuple(self._detections.values())
+
+    @property
+    def symptoms(self) -> dict[int, str]:
+        """The symptom of every joint found faulty (a stuck one that moved since: not following)."""
+        return {j: d.symptom for j, d in self._detections.items()}
 
     @property
     def faulty_joints(self) -> frozenset[int]:
@@ -182,7 +192,11 @@ class JointHealthMonitor:
             if j not in self._detections:
                 detection = Detection(j, str(symptom[j]), int(t_ns))
                 self._detections[j] = detection
+                self._found_at[j] = float(q[j])
                 new.append(detection)
+        for j, detection in list(self._detections.items()):
+            if detection.symptom == STUCK and abs(q[j] - self._found_at[j]) > self._margin[j]:
+                self._detections[j] = Detection(j, NOT_FOLLOWING, detection.t_ns)
         return new
 
     def _command_at(self, t_ns: int) -> NDArray[np.float64] | None:
