@@ -70,8 +70,17 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from splitter_bringup.analysis.fault_draws import (
+    NO_DETECTION,
+    FaultDetection,
+    detection_table,
+    draw_fault,
+    fault_detection,
+    fault_row,
+)
 from splitter_bringup.analysis.summary import estimator_errors, hemi_inertia_error
 from splitter_bringup.scenario.definition import Scenario
+from splitter_model.faults import JointFault
 from splitter_model.model import RobotModel
 from splitter_sim.core.robot_errors import RobotErrors
 
@@ -121,6 +130,10 @@ class PerturbationSpec:
     # the controllers fly on the flight estimator (splitter_mpc.core.estimator) and lead
     # their commands through the actuators' lag; False: they read the sensors as they are
     estimator: bool = True
+    # [s] every draw has one random fault (analysis.fault_draws) before this time; 0: none
+    fault_time_max_s: float = 0.0
+    # the allocator detects faulty joints and re-plans without them (Scenario.fault_handling)
+    fault_handling: bool = True
 
     def __post_init__(self) -> None:
         for name, value in self.as_dict().items():
@@ -131,12 +144,16 @@ class PerturbationSpec:
 
     @property
     def active(self) -> bool:
-        """True when anything is perturbed."""
-        return any(v > 0.0 for k, v in self.as_dict().items() if k != "joint_effort_noise")
+        """True when the robot is perturbed (its masses, sensors, actuators)."""
+        return any(
+            v > 0.0
+            for k, v in self.as_dict().items()
+            if k not in ("joint_effort_noise", "fault_time_max_s")
+        )
 
     def as_dict(self) -> dict[str, float]:
         """Each perturbation by its field name."""
-        return {k: v for k, v in asdict(self).items() if k != "estimator"}
+        return {k: v for k, v in asdict(self).items() if k not in ("estimator", "fault_handling")}
 
 
 @dataclass(frozen=True)
@@ -152,6 +169,7 @@ class Draw:
     noise_seed: int = 0  # of the gyro noise
     # [kg m^2] each hemi body's own principal moments (zero: the paper's points)
     hemi_inertia_kg_m2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fault: JointFault | None = None  # the draw's fault (--fault RANDOM), else None
 
     @property
     def w0_norm_rad_s(self) -> float:
@@ -184,6 +202,7 @@ def make_draw(
     bias_u = rng.uniform(-1.0, 1.0, 3)
     noise_seed = int(rng.integers(0, 2**31 - 1))
     edges = p.hemi_body_edge_m * rng.uniform(0.5, 1.0, 3)  # [m] x, y, z
+    fault_u = rng.uniform(0.0, 1.0, 3)  # drawn last (analysis.fault_draws)
     body_mass = RobotModel().body_mass_kg * (1.0 + p.mass_fraction * mass_u[0])  # [kg]
     return Draw(
         index=int(index),
@@ -194,6 +213,7 @@ def make_draw(
         gyro_bias_rad_s=_triple(p.gyro_bias_rad_s * bias_u + 0.0),  # (no -0.0)
         noise_seed=noise_seed,
         hemi_inertia_kg_m2=box_inertia(body_mass, edges),
+        fault=draw_fault(fault_u, p.fault_time_max_s) if p.fault_time_max_s > 0.0 else None,
     )
 
 
@@ -224,12 +244,14 @@ def _triple(v: ArrayLike) -> tuple[float, float, float]:
 
 
 def scenario_for_draw(base: Scenario, draw: Draw, duration_s: float | None = None) -> Scenario:
-    """``base`` started from the draw's rate and attitude (and run ``duration_s``)."""
+    """``base`` started from the draw's rate and attitude (and run ``duration_s``), with
+    the draw's fault."""
     return replace(
         base,
         initial_angular_velocity_rad_s=np.array(draw.w0_rad_s, dtype=float),
         initial_orientation_euler_deg=np.array(draw.euler_deg, dtype=float),
         duration_s=base.duration_s if duration_s is None else float(duration_s),
+        faults=() if draw.fault is None else (draw.fault,),
     )
 
 
@@ -292,6 +314,9 @@ def scenario_document(
     initial["angular_velocity_rad_s"] = list(draw.w0_rad_s)
     initial["orientation_euler_deg"] = list(draw.euler_deg)
     doc["initial"] = initial
+    if draw.fault is not None:
+        f = draw.fault
+        doc["faults"] = [{"joint": f.joint, "kind": f.kind, "time_s": float(f.time_s)}]
     doc["variants"] = {base.variant: {}}
     if robot_errors is not None and robot_errors.present:
         doc["robot_errors"] = {
@@ -407,6 +432,8 @@ class DrawResult:
     mass_error: float = math.nan  # [-] largest |m_est / m_true - 1| of m_x, m_y, m_z
     # [kg m^2] |J_x,est - J_x| of a hemi body's own moment about the tether axis
     hemi_inertia_error_kg_m2: float = math.nan
+    # the draw's fault found (analysis.fault_draws); NaN times: no fault, or never
+    detection: FaultDetection = NO_DETECTION
 
     @property
     def outcome(self) -> str:
@@ -449,6 +476,15 @@ def draw_result(draw: Draw, series, wall_time_s: float) -> DrawResult:
         hemi_inertia_error_kg_m2=(
             hemi_inertia_error(series, errors) if any(draw.hemi_inertia_kg_m2) else math.nan
         ),
+        detection=fault_detection(
+            series.t_s,
+            series.joint_position,
+            extras["joint_command"],
+            extras["joint_detected"],
+            draw.fault,
+        )
+        if "joint_detected" in extras and n
+        else NO_DETECTION,
     )
 
 
@@ -548,6 +584,13 @@ def summarize(results: Sequence[DrawResult]) -> CampaignSummary:
         mass_error_p95=_percentile(
             [r.mass_error for r in results if math.isfinite(r.mass_error)], 95.0
         ),
+        extra={
+            "faults": detection_table(
+                [fault_row(r.draw.fault) for r in results],
+                [r.success for r in results],
+                [r.detection for r in results],
+            )
+        },
     )
 
 
@@ -636,6 +679,13 @@ CSV_COLUMNS = (
     "hemi_inertia_y_kg_m2",
     "hemi_inertia_z_kg_m2",
     "hemi_inertia_error_kg_m2",
+    "fault_joint",
+    "fault_kind",
+    "fault_time_s",
+    "fault_detected_s",
+    "fault_first_motion_s",
+    "fault_detection_latency_s",
+    "false_detections",
 )
 
 
@@ -668,6 +718,13 @@ def csv_row(result: DrawResult) -> dict[str, Any]:
                 _csv_number(result.mass_error),
                 *(repr(v) for v in d.hemi_inertia_kg_m2),
                 _csv_number(result.hemi_inertia_error_kg_m2),
+                "" if d.fault is None else d.fault.joint,
+                "" if d.fault is None else d.fault.kind,
+                "" if d.fault is None else repr(float(d.fault.time_s)),
+                _csv_number(result.detection.detected_s),
+                _csv_number(result.detection.first_motion_s),
+                _csv_number(result.detection.latency_s),
+                result.detection.false_detections,
             ),
             strict=True,
         )

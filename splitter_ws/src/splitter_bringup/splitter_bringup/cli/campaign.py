@@ -60,6 +60,7 @@ from splitter_bringup.analysis.campaign import (
     write_csv,
     write_draw_scenario,
 )
+from splitter_bringup.analysis.fault_draws import FAULT_TIME_MAX_S
 from splitter_bringup.analysis.jump_campaign import JumpRanges
 from splitter_bringup.run.campaign import fly_draw, run_on_dask
 from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
@@ -219,6 +220,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a step across the path within [0, M] high, its edge anywhere along the path "
         f"(default {JumpRanges.step_height_m})",
     )
+    faults = parser.add_argument_group("faults (splitter_bringup.analysis.fault_draws)")
+    faults.add_argument(
+        "--fault",
+        choices=("RANDOM",),
+        default=None,
+        help="every draw has one fault: a limb joint locked, a limb joint limp, or the reel "
+        "locked (equal chances), at a random time before --fault-time-max",
+    )
+    faults.add_argument(
+        "--fault-time-max",
+        type=float,
+        default=FAULT_TIME_MAX_S,
+        metavar="S",
+        help=f"latest fault time [s] (default {FAULT_TIME_MAX_S})",
+    )
+    faults.add_argument(
+        "--no-fault-handling",
+        action="store_true",
+        help="the allocator neither detects faulty joints nor re-plans without them "
+        "(the comparison the handling must beat)",
+    )
     parser.add_argument(
         "--replay",
         type=int,
@@ -241,6 +263,8 @@ def _given(value: float | None) -> float:
 
 
 def _spec(args: argparse.Namespace) -> PerturbationSpec:
+    if args.fault and not (math.isfinite(args.fault_time_max) and args.fault_time_max > 0.0):
+        raise ValueError(f"--fault-time-max must be > 0 s, got {args.fault_time_max}")
     return PerturbationSpec(
         mass_fraction=_given(args.perturb_mass),
         gyro_noise_rad_s=_given(args.imu_noise),
@@ -250,6 +274,8 @@ def _spec(args: argparse.Namespace) -> PerturbationSpec:
         hemi_body_edge_m=args.hemi_bodies,
         joint_effort_noise=args.effort_noise,
         estimator=not args.no_estimator,
+        fault_time_max_s=args.fault_time_max if args.fault else 0.0,
+        fault_handling=not args.no_fault_handling,
     )
 
 
@@ -283,6 +309,10 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
         words += ["--effort-noise", repr(args.effort_noise)]
     if args.no_estimator:
         words.append("--no-estimator")
+    if args.fault:
+        words += ["--fault", args.fault, "--fault-time-max", repr(args.fault_time_max)]
+    if args.no_fault_handling:
+        words.append("--no-fault-handling")
     words += ["--out", str(out)]
     return shlex.join(words)
 
@@ -313,6 +343,14 @@ def _print_summary(summary: dict[str, Any], title: str) -> None:
         print(
             f"  estimator at the end, p95 over draws: gyro bias error {bias:.5f} rad/s, "
             f"mass ratio error {100 * ratio:.2f} %, mass error {100 * (mass or 0.0):.2f} %"
+        )
+    for row, figures in (summary.get("faults") or {}).items():
+        latency = figures["detection_latency_max_s"]
+        print(
+            f"  {row:<12} {figures['successes']}/{figures['draws']} = "
+            f"{figures['success_rate']:.3f}, detections missed {figures['detections_missed']}, "
+            f"latency max {'-' if latency is None else f'{latency:.3f} s'}, "
+            f"false detections {figures['false_detections']}"
         )
     print(f"  wall time {summary['wall_time_s']:.1f} s")
 

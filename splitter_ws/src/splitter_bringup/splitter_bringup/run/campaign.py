@@ -53,7 +53,11 @@ def fly_draw(
     before it.
     """
     spec = perturbation or PerturbationSpec()
-    flown = replace(scenario, robot_errors=robot_errors_for_draw(draw, spec))
+    flown = replace(
+        scenario,
+        robot_errors=robot_errors_for_draw(draw, spec),
+        fault_handling=spec.fault_handling,
+    )
     if spec.estimator:
         flown = estimator_for_draw(flown, draw)
     return run(flown, LIBRARY, estimator=None if spec.estimator else False)

@@ -126,7 +126,6 @@ def run_closed_loop(
     duration_s: float | None = None,
     estimation: EstimatorConfig | None = None,
     estimator: bool | None = None,
-    fault_handling: bool = True,
 ) -> RunSeries:
     """Run ``scenario`` (its chosen variant) to its end; every simulator step recorded.
 
@@ -138,11 +137,11 @@ def run_closed_loop(
     flight estimator (``estimation`` its parameters, default the scenario's) as the graph's do
     (:func:`~splitter_bringup.scenario.graph_config.flies_on_estimates`), unless
     ``estimator`` says otherwise (False: they read the gyro and the simulator's inertia
-    as they are, and do not lead their commands through the lag). ``fault_handling``
-    False: the allocator neither detects faulty joints nor re-plans without them. The
-    series records the true state, the simulator's faults (``joint_fault``, codes of
-    ``splitter_model.faults``) and the detections (``joint_detected``: 1 from the tick a
-    joint is found faulty).
+    as they are, and do not lead their commands through the lag). The allocator detects
+    faulty joints and re-plans without them unless the scenario's ``fault_handling`` is
+    false. The series records the true state, the simulator's faults (``joint_fault``,
+    codes of ``splitter_model.faults``), the detections (``joint_detected``: 1 from the
+    tick a joint is found faulty) and the last joint command (``joint_command``).
     """
     model = model or RobotModel()
     estimated = flies_on_estimates(scenario) if estimator is None else bool(estimator)
@@ -158,13 +157,14 @@ def run_closed_loop(
                 duration_s=duration_s,
                 estimation=estimation,
                 estimator=estimator,
-                fault_handling=fault_handling,
             )
     sim = simulator_tick(scenario, model, CONTROL_PERIOD_NS / NS_PER_S)
     gait = GaitTick(*gait_settings_from_parameters(gait_parameters(scenario)))
     mpc_tick = MpcTick(controller, MpcTickSettings(estimated_masses=estimated))
     # starts, as its node, from the first measured inertia
-    allocator = AllocatorTick(model, settings=AllocatorTickSettings(fault_handling=fault_handling))
+    allocator = AllocatorTick(
+        model, settings=AllocatorTickSettings(fault_handling=scenario.fault_handling)
+    )
     estimation = scenario.estimator if estimation is None else estimation
     flight = EstimatorTick(model, estimation, CONTROL_PERIOD_NS) if estimated else None
     fail_ns = {round(t * NS_PER_S) for t in fail_solves_at_s}
@@ -253,6 +253,8 @@ def run_closed_loop(
         _record(rec, state, setpoint, solve, counts)
         rec["joint_fault"].append(state.joint_fault)
         rec["joint_detected"].append(_detected(allocator.health.faulty_joints))
+        last = allocator.last_allocation
+        rec["joint_command"].append(state.joint_position if last is None else last.joint_position)
         phases.append(phase_name)
         if step < n_steps:
             sim.step()
@@ -307,6 +309,7 @@ _RECORDED = (
     "deadline_misses",
     "joint_fault",
     "joint_detected",
+    "joint_command",
 )
 
 
@@ -371,6 +374,7 @@ def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSerie
             "mpc_deadline_misses": a["deadline_misses"],
             "joint_fault": a["joint_fault"],  # (n, 25) simulator's truth: 0 ok, 1 locked, 2 limp
             "joint_detected": a["joint_detected"],  # (n, 25) 1: the allocator found it faulty
+            "joint_command": a["joint_command"],  # (n, 25) the last joint command sent
         },
     )
 

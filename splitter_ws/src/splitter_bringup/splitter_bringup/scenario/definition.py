@@ -148,6 +148,8 @@ class Scenario:
     friction_coefficient: float = 0.8  # [-] of the ground (SimConfig's field)
     # joints and the reel that fail in the run (splitter_model.faults); default: none
     faults: tuple[JointFault, ...] = ()
+    # the allocator detects faulty joints and re-plans without them (its fault_handling)
+    fault_handling: bool = True
     # how the simulated robot differs from the nominal one its controllers assume
     # (masses, gyro noise and bias, actuator lag); default: not at all
     robot_errors: RobotErrors = field(default_factory=RobotErrors)
@@ -333,6 +335,13 @@ def _jumps(data: Any) -> tuple[JumpSpec, ...]:
     return tuple(out)
 
 
+def _boolean(data: Mapping[str, Any], key: str, default: bool) -> bool:
+    value = data.get(key, default)
+    if not isinstance(value, bool):
+        raise ScenarioError(f"{key}: must be true or false, got {value!r}")
+    return value
+
+
 def _faults(data: Any) -> tuple[JointFault, ...]:
     """The scenario's ``faults``: ``[{joint, kind, time_s}]``; errors name the field."""
     if data is None:
@@ -403,6 +412,7 @@ SCENARIO_FIELDS = (
     "robot_errors",
     "estimator",
     "faults",
+    "fault_handling",
 )
 INITIAL_FIELDS = (
     "angular_velocity_rad_s",
@@ -587,6 +597,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         terrain=terrain,
         friction_coefficient=friction,
         faults=_faults(d.get("faults")),
+        fault_handling=_boolean(d, "fault_handling", True),
         robot_errors=_robot_errors(d.get("robot_errors")),
         estimator=_estimator(d.get("estimator")),
         paper=dict(d.get("paper", {}) or {}),

@@ -212,6 +212,7 @@ def allocator_parameters(scenario: Scenario, real_time: bool = False) -> dict:
         "use_sim_time": True,
         "initial_radii_m": _floats(scenario.initial_radii_m),
         "command_lead": bool(real_time),
+        "fault_handling": bool(scenario.fault_handling),
     }
 
 
