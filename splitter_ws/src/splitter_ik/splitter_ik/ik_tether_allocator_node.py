@@ -14,6 +14,11 @@ rules, also driven by the library closed loop): messages in, its outputs publish
   control tick of it is answered from the last good setpoint, so that a lockstep
   simulator keeps running without the MPC (with the IMU of the same tick when an
   IMU publisher exists).
+* ``/splitter/joint_states`` against the commands it sent: faulty joints
+  (:mod:`splitter_ik.core.joint_health`; parameter ``fault_handling``). Once one is
+  found the allocator re-plans without it (``splitter_model.redundancy``) and
+  publishes ``/splitter/joint_health`` every tick: the faulty joints, their symptoms
+  and the radius bounds that remain (the MPC plans within them).
 * ``/diagnostics`` once per ``diagnostics_period_s`` of simulated time (the stamps
   of the ticks answered): saturation, rate limiting, tension and its margin,
   rejected and projected setpoints.
@@ -65,6 +70,8 @@ from splitter_msgs_py.conversions import (
     DiagnosticStatusSample,
     diagnostics_to_msg,
     imu_from_msg,
+    joint_health_status,
+    joint_state_from_msg,
     joint_state_to_msg,
     principal_inertia_from_msg,
     vector3_from_msg,
@@ -119,10 +126,14 @@ class IkTetherAllocatorNode(Node):
         self._diagnostics_pub = self.create_publisher(
             DiagnosticArray, names.DIAGNOSTICS, qos_for(names.DIAGNOSTICS)
         )
+        self._health_pub = self.create_publisher(
+            DiagnosticArray, names.JOINT_HEALTH, qos_for(names.JOINT_HEALTH)
+        )
         for msg_type, topic, callback in (
             (Vector3Stamped, names.INERTIA_SETPOINT, self._on_setpoint),
             (Imu, names.IMU, self._on_imu),
             (Vector3Stamped, names.INERTIA, self._on_inertia),
+            (JointState, names.JOINT_STATES, self._on_joint_states),
         ):
             self.create_subscription(msg_type, topic, callback, qos_for(topic))
         config, model = self.core.config, self.core.model
@@ -168,6 +179,26 @@ class IkTetherAllocatorNode(Node):
             return self.core.measured_inertia(t_ns, principal_inertia_from_msg(msg).vector)
 
         self._take(names.INERTIA, msg, use)
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        """Measured joints: faults found, then ``/splitter/joint_health`` while there are any."""
+        try:
+            sample = joint_state_from_msg(msg)
+        except MessageValidationError as exc:
+            warn_throttled(self, "joint_states", f"rejected {names.JOINT_STATES}: {exc}")
+            return
+        core = self.core
+        for detection in core.joint_states(sample.t_ns, sample.position):
+            self.get_logger().error(
+                f"t = {detection.t_ns * 1e-9:.3f} s: joint {detection.joint_name} is faulty "
+                f"({detection.symptom}): re-planning without it"
+            )
+        if core.remaining is None:
+            return
+        health = joint_health_status(
+            core.health.symptoms, core.remaining.reachable(core.model), NODE_NAME
+        )
+        self._health_pub.publish(diagnostics_to_msg(sample.t_ns, [health]))
 
     def _take(self, topic: str, msg, use: Callable[[int], TickOutput]) -> None:
         """Admit the stamp of ``msg``, hand it to the core (``use``), publish the outcome."""

@@ -12,6 +12,8 @@ manager on its first tick), and for the gait phase when a node publishes one, so
 that the first plan does not depend on message order (a first tick answered before
 the phase arrived would plan where LAUNCH holds the nominal shape).
 ``/splitter/gait_phase`` (latched) switches it off in LANDED.
+``/splitter/joint_health`` (the allocator's, after a joint fault): the MPC plans within
+the radius bounds that remain from its next solve on (``splitter_model.redundancy``).
 When a gait phase manager is in the graph (it publishes
 ``/splitter/jump_command``), each tick ``t`` is answered only after the manager's
 jump command stamped ``t``: the manager publishes a phase or reference change of
@@ -52,8 +54,10 @@ from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     MessageValidationError,
     imu_from_msg,
+    joint_health_from_msg,
     pose_from_msg,
     principal_inertia_from_msg,
+    stamp_from_msg,
     twist_from_msg,
     vector3_from_msg,
     vector3_to_msg,
@@ -171,6 +175,12 @@ class InertialMorphingMpcNode(Node):
             self.create_subscription(
                 msg_type, topic, lambda msg, topic=topic: self._on_input(topic, msg), qos
             )
+        self.create_subscription(
+            DiagnosticArray,
+            names.JOINT_HEALTH,
+            self._on_joint_health,
+            qos_for(names.JOINT_HEALTH),
+        )
         self.get_logger().info("ready")
 
     @property
@@ -196,6 +206,22 @@ class InertialMorphingMpcNode(Node):
 
     def _clock_ns(self) -> int | None:
         return sim_clock_ns(self)
+
+    def _on_joint_health(self, msg: DiagnosticArray) -> None:
+        """The radius bounds a joint fault left, planned within from the next solve."""
+        try:
+            health = joint_health_from_msg(msg)
+        except MessageValidationError as exc:
+            warn_throttled(self, "joint_health", f"rejected {names.JOINT_HEALTH}: {exc}")
+            return
+        if self.controller.mpc.radius_bounds_m is None:
+            self.get_logger().warning(
+                f"joints {', '.join(health.symptoms)} faulty: planning within radii "
+                f"{health.radius_min_m.round(4).tolist()} .. "
+                f"{health.radius_max_m.round(4).tolist()} m"
+            )
+        stamp = stamp_from_msg(msg.header.stamp)
+        self.controller.set_radius_bounds(health.radius_min_m, health.radius_max_m, stamp)
 
     def _on_input(self, topic: str, msg: object) -> None:
         """The message read and checked, then its stamp admitted, then given to the tick."""

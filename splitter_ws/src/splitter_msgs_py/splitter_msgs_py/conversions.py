@@ -535,6 +535,57 @@ def diagnostics_from_msg(msg: DiagnosticArray) -> list[DiagnosticStatusSample]:
     return out
 
 
+# --- joint health (/splitter/joint_health) ---------------------------------------
+_AXES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class JointHealth:
+    """The faulty joints the allocator found and the radius bounds that remain [m]."""
+
+    symptoms: Mapping[str, str]  # joint name -> symptom
+    radius_min_m: NDArray[np.float64]  # (3,) r_x, r_y, r_z
+    radius_max_m: NDArray[np.float64]
+
+
+def joint_health_status(symptoms: Mapping[int, str], reachable, node_name: str):
+    """The status of ``/splitter/joint_health``: faulty joints (``JOINT_NAMES`` indices ->
+    symptom) and the radius bounds of ``reachable`` (a ``ReachableSet``)."""
+    values: dict[str, float | int | str | bool] = {
+        names.JOINT_NAMES[j]: symptom for j, symptom in sorted(symptoms.items())
+    }
+    for axis, low, high in zip(_AXES, reachable.radius_min_m, reachable.radius_max_m, strict=True):
+        values[f"radius_min_{axis}_m"] = float(low)
+        values[f"radius_max_{axis}_m"] = float(high)
+    joints = ", ".join(f"{names.JOINT_NAMES[j]} {s}" for j, s in sorted(symptoms.items()))
+    return DiagnosticStatusSample(
+        name=f"{node_name}: joint health", level=2, message=joints, values=values
+    )
+
+
+def joint_health_from_msg(msg: DiagnosticArray) -> JointHealth:
+    """:class:`JointHealth` of a ``/splitter/joint_health`` message; MessageValidationError
+    unless it names known joints and finite radius bounds with 0 < min < max."""
+    statuses = diagnostics_from_msg(msg)
+    if len(statuses) != 1:
+        raise MessageValidationError(f"joint health: 1 status expected, got {len(statuses)}")
+    values = statuses[0].values
+    try:
+        low = np.array([float(values[f"radius_min_{a}_m"]) for a in _AXES])
+        high = np.array([float(values[f"radius_max_{a}_m"]) for a in _AXES])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise MessageValidationError(f"joint health: radius bounds missing ({exc})") from None
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+        raise MessageValidationError("joint health: radius bounds must be finite")
+    if not (np.all(low > 0.0) and np.all(low < high)):
+        raise MessageValidationError(f"joint health: need 0 < min < max, got {low}, {high}")
+    symptoms = {k: str(v) for k, v in values.items() if k in names.JOINT_INDEX}
+    unknown = [k for k in values if not k.startswith("radius_") and k not in names.JOINT_INDEX]
+    if unknown:
+        raise MessageValidationError(f"joint health: unknown joints {unknown}")
+    return JointHealth(symptoms, low, high)
+
+
 # --- types ---------------------------------------------------------------------
 def message_class(type_name: str) -> type:
     """The rclpy message class of a ``pkg/msg/Type`` name."""

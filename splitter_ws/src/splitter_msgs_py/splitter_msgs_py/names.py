@@ -54,6 +54,13 @@ LEG_FORCES: Final = (LEG_FORCE_A, LEG_FORCE_B)
 TRUTH_IMU: Final = "/splitter/truth/imu"
 TRUTH_INERTIA: Final = "/splitter/truth/inertia"
 TRUTH_TOPICS: Final = (TRUTH_IMU, TRUTH_INERTIA)
+# Faults (splitter_model.faults): a joint or the reel made to fail (key: the joint's name,
+# value: locked or limp), into the simulator at any time; the faults the simulator has
+# (ground truth, on change); the faulty joints the allocator found from the joint states,
+# with the radius bounds that remain (every control tick while there are any).
+FAULT_INJECTION: Final = "/splitter/fault_injection"
+TRUTH_JOINT_FAULTS: Final = "/splitter/truth/joint_faults"
+JOINT_HEALTH: Final = "/splitter/joint_health"
 # The flight estimator's answers (splitter_mpc.flight_estimator_node), each control tick:
 # the rate and attitude (Imu, with the rate's covariance), the estimated model's
 # principal moments, its masses (m_x, m_y, m_z [kg]), the gyro bias [rad/s] and each hemi
@@ -95,6 +102,9 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     LEG_FORCE_B: "geometry_msgs/msg/WrenchStamped",
     TRUTH_IMU: "sensor_msgs/msg/Imu",
     TRUTH_INERTIA: "geometry_msgs/msg/Vector3Stamped",
+    FAULT_INJECTION: "diagnostic_msgs/msg/KeyValue",
+    TRUTH_JOINT_FAULTS: "diagnostic_msgs/msg/DiagnosticArray",
+    JOINT_HEALTH: "diagnostic_msgs/msg/DiagnosticArray",
     ESTIMATE_IMU: "sensor_msgs/msg/Imu",
     ESTIMATE_INERTIA: "geometry_msgs/msg/Vector3Stamped",
     ESTIMATE_MASSES: "geometry_msgs/msg/Vector3Stamped",

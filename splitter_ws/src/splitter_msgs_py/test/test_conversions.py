@@ -221,3 +221,31 @@ def test_huge_numbers_are_rejected_not_overflowed() -> None:
         conv.unit_quaternion([1e300, 0.0, 0.0, 1e300])
     with pytest.raises(conv.MessageValidationError, match="velocity"):
         conv.odom_to_msg(0, [0, 0, 0], [0.6, 0.8, 0, 0], [0, 1.7e308, 1.7e308], [0, 0, 0])
+
+
+def test_joint_health_round_trip_and_refusals() -> None:
+    from types import SimpleNamespace
+
+    reachable = SimpleNamespace(
+        radius_min_m=np.array([0.5, 0.2, 0.107]), radius_max_m=np.array([3.0, 0.31, 0.397])
+    )
+    knee = names.JOINT_INDEX["hemi_a_y_pos_knee"]
+    status = conv.joint_health_status({knee: "stuck"}, reachable, "ik_tether_allocator")
+    msg = conv.diagnostics_to_msg(7_000_000, [status])
+    msg = deserialize_message(serialize_message(msg), type(msg))
+    health = conv.joint_health_from_msg(msg)
+    assert health.symptoms == {"hemi_a_y_pos_knee": "stuck"}
+    assert np.array_equal(health.radius_min_m, reachable.radius_min_m)
+    assert np.array_equal(health.radius_max_m, reachable.radius_max_m)
+    for key, value in (
+        ("radius_min_y_m", "nan"),
+        ("radius_max_x_m", "0.1"),  # below its min
+        ("elbow", "stuck"),
+    ):
+        bad = conv.diagnostics_to_msg(7_000_000, [status])
+        bad.status[0].values = [kv for kv in bad.status[0].values if kv.key != key]
+        bad.status[0].values.append(type(bad.status[0].values[0])(key=key, value=value))
+        with pytest.raises(conv.MessageValidationError):
+            conv.joint_health_from_msg(bad)
+    with pytest.raises(conv.MessageValidationError, match="1 status"):
+        conv.joint_health_from_msg(conv.diagnostics_to_msg(0, []))

@@ -7,11 +7,16 @@ step, joint states, inertia, odometry, contact wrenches, the ground truth
 (``/splitter/truth/inertia``, ``/splitter/truth/imu``) and the IMU (its rate gyro's
 reading: the true rate with the robot's gyro bias and noise); on the markers grid
 the scene (:class:`splitter_sim.core.scene.Scene`) as ``/splitter/scene/masses`` and
-``/splitter/markers`` drawn from it; ``/diagnostics``. ``lockstep``: a steady timer
-and the command callbacks step it, never blocking; ``real_time``: a wall-clock timer
-at ``dt_s / rate_factor``. Bad input is warned (throttled) and counted, never raised.
-Parameters: the fields of ``SimConfig``, ``SimulatorSettings`` and ``RobotErrors`` (the
-simulated robot's mass, gyro and actuator-lag errors).
+``/splitter/markers`` drawn from it; ``/diagnostics``. Faults
+(``splitter_model.faults``): ``/splitter/fault_injection`` (KeyValue: a joint's name,
+locked or limp) breaks that joint at the simulated time it arrives, as the parameters
+``fault_joints``, ``fault_kinds``, ``fault_times_s`` do at their times; the faults it
+has are published on ``/splitter/truth/joint_faults`` when they change (latched).
+``lockstep``: a steady timer and the command callbacks step it, never blocking;
+``real_time``: a wall-clock timer at ``dt_s / rate_factor``. Bad input is warned
+(throttled) and counted, never raised. Parameters: the fields of ``SimConfig``,
+``SimulatorSettings`` and ``RobotErrors`` (the simulated robot's mass, gyro and
+actuator-lag errors).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import math
 import time
 from collections.abc import Callable
 
+from diagnostic_msgs.msg import KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
@@ -28,6 +34,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
+from splitter_model.faults import FAULT_NAMES
 from splitter_model.model import gravity_from_name
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
@@ -64,6 +71,7 @@ STATE_TOPICS = (
 TRUTH_TOPICS = (*names.TRUTH_TOPICS, names.ODOM, *names.CONTACT_WRENCHES)
 PUBLISHED = (
     names.CLOCK,
+    names.TRUTH_JOINT_FAULTS,
     *STATE_TOPICS,
     *TRUTH_TOPICS,
     names.SCENE_MASSES,
@@ -94,6 +102,7 @@ class SimulatorNode(Node):
         self._run_wall_start: float | None = None
         self._run_start_unix_s = 0.0  # [s] wall clock (epoch) of the first step
         self._published_t_ns: int | None = None
+        self._published_faults: tuple[int, ...] = ()  # fault codes last published
         self._slack_warned_at = -math.inf  # [s] wall time of the last slack warning
         self._has_publisher = PublisherPresence(self)
         self._pubs = {
@@ -103,6 +112,7 @@ class SimulatorNode(Node):
         for msg_type, topic, callback in (
             (JointState, names.JOINT_COMMANDS, self._on_joint_commands),
             (WrenchStamped, names.JUMP_COMMAND, self._on_jump_command),
+            (KeyValue, names.FAULT_INJECTION, self._on_fault_injection),
         ):
             self.create_subscription(msg_type, topic, callback, qos_for(topic))
         dt_s, real_time = self.tick.sim.config.dt_s, self.tick.real_time
@@ -154,6 +164,33 @@ class SimulatorNode(Node):
             self.tick.command_jump(stamp, sample.force_n, sample.torque_nm, sample.frame_id)
 
         self._on_command(names.JUMP_COMMAND, JUMP_KEY, msg, apply)
+
+    def _on_fault_injection(self, msg: KeyValue) -> None:
+        """Break a joint now; an unknown joint or kind, or a second fault, is warned."""
+        try:
+            fault = self.tick.sim.inject_fault(msg.key, msg.value)
+        except ValueError as exc:
+            warn_throttled(self, "fault_injection", f"rejected {names.FAULT_INJECTION}: {exc}")
+            return
+        self.get_logger().warning(
+            f"t = {fault.time_s:.3f} s: joint {fault.joint} made {fault.kind} "
+            f"({names.FAULT_INJECTION})"
+        )
+
+    def _publish_faults(self, t_ns: int) -> None:
+        """The simulator's faults (ground truth), when they changed."""
+        codes = tuple(int(c) for c in self.tick.sim.fault_codes)
+        if codes == self._published_faults:
+            return
+        self._published_faults = codes
+        values = {names.JOINT_NAMES[j]: FAULT_NAMES[c] for j, c in enumerate(codes) if c != 0}
+        status = cv.DiagnosticStatusSample(
+            name=f"{NODE_NAME}: joint faults",
+            level=2 if values else 0,
+            message=", ".join(f"{j} {k}" for j, k in values.items()) or "no fault",
+            values=values,
+        )
+        self._pubs[names.TRUTH_JOINT_FAULTS].publish(cv.diagnostics_to_msg(t_ns, [status]))
 
     def _on_command(self, topic: str, key: str, msg, apply: Callable[[int], None]) -> None:
         """Admit the stamp, read and apply the command; either refusal is warned, counted."""
@@ -319,6 +356,7 @@ class SimulatorNode(Node):
             return
         for topic, msg in msgs:
             self._pubs[topic].publish(msg)
+        self._publish_faults(t)
         out = self.tick.published(state)
         now = time.monotonic()  # throttled here: rclpy's throttle looks up the caller's line
         if out.slack_started and now - self._slack_warned_at >= SLACK_WARNING_PERIOD_S:

@@ -188,6 +188,10 @@ def run_closed_loop(
         readings = sim.readings(state)  # what the robot's sensors read (once per step)
         gyro = readings.gyro_rad_s
         solve = {"time_ms": np.nan, "iterations": np.nan, "ok": np.nan, "cost": np.nan}
+        allocator.joint_states(t, state.joint_position)  # every step, as its node hears them
+        if allocator.remaining is not None:  # /splitter/joint_health, used after this tick
+            remaining = allocator.remaining.reachable(model)
+            controller.set_radius_bounds(remaining.radius_min_m, remaining.radius_max_m, t)
         if t % CONTROL_PERIOD_NS == 0 and step < n_steps:
             q_measured = received_quaternion(state.orientation_wxyz, hops=1)  # odom, imu
             rate, attitude, inertia = gyro, q_measured, state.principal_inertia_kg_m2
@@ -244,9 +248,6 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            if allocator.joint_states(t, state.joint_position) or allocator.remaining:
-                remaining = allocator.remaining.reachable(model)  # /splitter/joint_health
-                controller.set_radius_bounds(remaining.radius_min_m, remaining.radius_max_m)
             commanded = allocator.lockstep_tick(t, inertia, rate, setpoint)
             for allocation in commanded.commands:  # one per tick in lockstep
                 sim.command_joints(t, allocation.joint_position, allocation.joint_velocity)

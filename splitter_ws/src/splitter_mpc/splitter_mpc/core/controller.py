@@ -47,6 +47,7 @@ from splitter_mpc.core.mpc import (
     MpcPlan,
     MpcSettings,
     PlanRequest,
+    checked_radius_bounds,
 )
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import Closable, close_part
@@ -228,6 +229,8 @@ class MorphingController(Closable):
             else np.asarray(self.config.nominal_inertia_kg_m2, dtype=float)
         )
         self._last_setpoint: NDArray[np.float64] | None = None
+        # (stamp, r_min, r_max) radius bounds a fault left, used from the ticks after them
+        self._pending_bounds: list[tuple] = []
         self._stance_limbs_m: NDArray[np.float64] | None = None  # [m] r_y, r_z of the legs
         self._stance_radius_x_m: float | None = None  # [m] the tether held in stance shape
         self._recovering = False
@@ -267,11 +270,29 @@ class MorphingController(Closable):
         self.mpc.set_mass_model(model, hemi_inertia_kg_m2)
 
     def set_radius_bounds(
-        self, radius_min_m: ArrayLike | None, radius_max_m: ArrayLike | None
+        self,
+        radius_min_m: ArrayLike | None,
+        radius_max_m: ArrayLike | None,
+        stamp_ns: int | None = None,
     ) -> None:
         """Plan within the radius bounds [m] a fault left (``splitter_model.redundancy``);
-        None: the model's."""
-        self.mpc.set_radius_bounds(radius_min_m, radius_max_m)
+        None: the model's. ``stamp_ns``: found at that tick, so used from the ticks after
+        it (the graph's allocator publishes them while the MPC may be planning that tick).
+        Raises ``ValueError`` for bounds that are not finite with 0 < min < max."""
+        bounds = checked_radius_bounds(radius_min_m, radius_max_m) or (None, None)
+        if stamp_ns is None:
+            self.mpc.set_radius_bounds(*bounds)
+            self._pending_bounds.clear()
+        else:
+            self._pending_bounds.append((int(stamp_ns), *bounds))
+
+    def _apply_pending_bounds(self, t_ns: int) -> None:
+        """The latest radius bounds stamped before ``t_ns`` (whatever came after stays)."""
+        due = [b for b in self._pending_bounds if b[0] < t_ns]
+        if due:
+            _, low, high = max(due, key=lambda b: b[0])
+            self.mpc.set_radius_bounds(low, high)
+            self._pending_bounds = [b for b in self._pending_bounds if b[0] >= t_ns]
 
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""
@@ -322,6 +343,7 @@ class MorphingController(Closable):
         w = _finite_vector(angular_velocity_rad_s, 3, "angular_velocity_rad_s")
         q = _finite_vector(orientation_wxyz, 4, "orientation_wxyz")
         inertia = _finite_vector(inertia_kg_m2, 3, "inertia_kg_m2")
+        self._apply_pending_bounds(t_ns)
         if np.linalg.norm(q) < 0.5:
             raise ValueError(f"orientation_wxyz: not a quaternion, got {q.tolist()}")
         if np.any(inertia <= 0.0):

@@ -131,6 +131,21 @@ _LOG = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
 
 
+def checked_radius_bounds(
+    radius_min_m: ArrayLike | None, radius_max_m: ArrayLike | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """(r_min, r_max) [m] as arrays (3,), None for None; ValueError unless 0 < min < max."""
+    if radius_min_m is None or radius_max_m is None:
+        return None
+    lo = np.asarray(radius_min_m, dtype=float).reshape(3)
+    hi = np.asarray(radius_max_m, dtype=float).reshape(3)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(0.0 < lo)):
+        raise ValueError(f"radius bounds must be finite and > 0, got {lo}, {hi}")
+    if not np.all(lo < hi):
+        raise ValueError(f"radius bounds need min < max, got {lo}, {hi}")
+    return lo, hi
+
+
 @dataclass(frozen=True)
 class MpcSettings:
     """Horizon, integrator, solver and hardware margins.
@@ -361,16 +376,7 @@ class InertialMorphingMpc(Closable):
         """Plan within these radius bounds (r_x, r_y, r_z) [m] from the next solve: the
         reachable set that remains after a fault (``splitter_model.redundancy``); None:
         the model's. ValueError unless 0 < min < max, finite."""
-        if radius_min_m is None or radius_max_m is None:
-            self.radius_bounds_m = None
-            return
-        lo = np.asarray(radius_min_m, dtype=float).reshape(3)
-        hi = np.asarray(radius_max_m, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(0.0 < lo)):
-            raise ValueError(f"radius bounds must be finite and > 0, got {lo}, {hi}")
-        if not np.all(lo < hi):
-            raise ValueError(f"radius bounds need min < max, got {lo}, {hi}")
-        self.radius_bounds_m = (lo, hi)
+        self.radius_bounds_m = checked_radius_bounds(radius_min_m, radius_max_m)
 
     @property
     def reachable(self) -> ReachableSet:
