@@ -691,15 +691,34 @@ class Simulator:
             others = self._qdd
         if self._settled:
             others = self._zero_joints
-        self._free_qdd[self._limp] = limp_joint_accelerations(
-            self._kin,
-            self._q.tolist(),
-            self._qd.tolist(),
-            others.tolist(),
-            self._s[10:13],
-            limp=self._limp,
-            gyroscopic_sign=self._prm.gyroscopic_sign,
-        )
+        lim = self._limits
+        moving = list(self._limp)
+        while moving:  # a joint the dynamics press onto a stop rests there (the stop holds it)
+            qdd = limp_joint_accelerations(
+                self._kin,
+                self._q.tolist(),
+                self._qd.tolist(),
+                others.tolist(),
+                self._s[10:13],
+                limp=moving,
+                gyroscopic_sign=self._prm.gyroscopic_sign,
+            )
+            resting = [
+                k
+                for k, j in enumerate(moving)
+                if self._qd[j] == 0.0
+                and (
+                    (self._q[j] >= lim.position_max[j] and qdd[k] > 0.0)
+                    or (self._q[j] <= lim.position_min[j] and qdd[k] < 0.0)
+                )
+            ]
+            if not resting:
+                break
+            for k in resting:
+                self._free_qdd[moving[k]] = 0.0
+            moving = [j for k, j in enumerate(moving) if k not in resting]
+        if moving:
+            self._free_qdd[moving] = qdd
         self._settled = False
         if self._kernels is not None:
             self._kernels.ws[kernels.WS_FREE_QDD] = self._free_qdd
