@@ -1,0 +1,95 @@
+"""A joint broken at runtime in a running ``splitter launch`` (issue 31): found, handled, recorded.
+
+The graph runs as the user starts it (every node its own process, lockstep). When the
+simulated clock passes 1 s, this test publishes on ``/splitter/fault_injection`` what
+``ros2 topic pub --once /splitter/fault_injection diagnostic_msgs/msg/KeyValue
+"{key: tether, value: locked}"`` sends. The simulator locks the reel; the allocator
+finds it from the joint states, the MPC plans within what remains, and the bag holds
+the fault (``/splitter/truth/joint_faults``) and its detection
+(``/splitter/joint_health``); the flight still converges.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, KeyValue
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
+
+from splitter_bag import read_messages
+from splitter_bringup.analysis.campaign import classify_flight
+from splitter_bringup.run.run_bag import read_run_series
+from splitter_msgs_py import conversions as cv
+from splitter_msgs_py import names
+from splitter_msgs_py.environment import ros_environment
+from splitter_msgs_py.qos import qos_for
+
+SPLITTER = Path(sys.executable).with_name("splitter")
+INJECT_AT_S = 1.0  # [s] simulated
+
+
+@pytest.mark.slow
+def test_a_reel_locked_at_runtime_is_found_and_the_flight_converges(tmp_path: Path) -> None:
+    domain = int(os.environ["ROS_DOMAIN_ID"]) + 17
+    env = ros_environment(domain_id=domain)
+    launch = subprocess.Popen(
+        [str(SPLITTER), "launch", "spin_stabilization", "--variant", "mpc", "--out", str(tmp_path)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain)
+    injected: list[int] = []
+    try:
+        node = rclpy.create_node("fault_injector", context=context)
+        publisher = node.create_publisher(
+            KeyValue, names.FAULT_INJECTION, qos_for(names.FAULT_INJECTION)
+        )
+
+        def on_clock(msg: Clock) -> None:
+            t_ns = cv.stamp_from_msg(msg.clock)
+            if not injected and t_ns >= INJECT_AT_S * 1e9:
+                publisher.publish(KeyValue(key=names.TETHER_JOINT, value="locked"))
+                injected.append(t_ns)
+
+        node.create_subscription(Clock, names.CLOCK, on_clock, qos_for(names.CLOCK))
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + 600.0
+        while launch.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+        if launch.poll() is None:
+            launch.kill()
+    assert launch.returncode == 0
+    assert injected, "the clock never passed the injection time"
+    bag = tmp_path / "bag"
+    faults, health = [], []
+    for record in read_messages(bag, topics=[names.TRUTH_JOINT_FAULTS, names.JOINT_HEALTH]):
+        msg = deserialize_message(record.data, DiagnosticArray)
+        sample = cv.diagnostics_from_msg(msg)[0]
+        t = cv.stamp_from_msg(msg.header.stamp) * 1e-9
+        (faults if record.topic == names.TRUTH_JOINT_FAULTS else health).append((t, sample))
+    locked = [t for t, s in faults if s.values.get(names.TETHER_JOINT) == "locked"]
+    assert locked and INJECT_AT_S <= locked[0] < INJECT_AT_S + 0.1
+    found = [t for t, s in health if names.TETHER_JOINT in s.values]
+    assert found and 0.0 < found[0] - locked[0] <= 0.2  # the reel was moving: asked to
+    series = read_run_series(bag)
+    outcome = classify_flight(series.t_s, series.angular_velocity_rad_s)
+    assert outcome.success, outcome
+    tether = series.joint_position[:, names.JOINT_INDEX[names.TETHER_JOINT]]
+    after = series.t_s > locked[0] + 0.01
+    assert np.ptp(tether[after]) == 0.0  # locked where it was
