@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from splitter_bringup.analysis.metrics import FindingResult
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.analysis.touchdowns import Touchdown
+from splitter_model.joints import JOINT_NAMES
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix
 from splitter_model.terrain import FLAT, Terrain
@@ -112,7 +113,36 @@ def plot_flight(series: RunSeries, path: Path, title: str = "") -> Path:
     ax.set_xlabel("t [s]")
     ax.legend(loc="best", fontsize="small")
     ax.grid(True, alpha=0.3)
+    mark_faults(axes.ravel(), series)
     return save_figure(fig, path, title)
+
+
+def fault_events(series: RunSeries) -> list[tuple[float, str, str]]:
+    """(time [s], label, kind) of each joint's failure ("fault") and detection ("found")."""
+    events = []
+    for key, kind in (("joint_fault", "fault"), ("joint_detected", "found")):
+        values = series.extras.get(key)
+        if values is None or not len(values):
+            continue
+        for j in np.flatnonzero(np.asarray(values)[-1] != 0).tolist():
+            first = int(np.argmax(np.asarray(values)[:, j] != 0))
+            events.append((float(series.t_s[first]), f"{kind}: {JOINT_NAMES[j]}", kind))
+    return sorted(events)
+
+
+def mark_faults(axes, series: RunSeries) -> None:
+    """Vertical lines where a joint failed (red) and where it was found (dark red, dashed)."""
+    for t, label, kind in fault_events(series):
+        for k, ax in enumerate(axes):
+            ax.axvline(
+                t,
+                color="red" if kind == "fault" else "darkred",
+                linestyle="-" if kind == "fault" else "--",
+                linewidth=1.0,
+                label=label if k == 0 else None,
+            )
+    if fault_events(series):
+        axes[0].legend(loc="best", fontsize="small")
 
 
 def plot_quaternion_map(series: RunSeries, path: Path, title: str = "") -> Path:

@@ -46,6 +46,7 @@ from splitter_ik.core.command_lead import CommandLead, CommandLeadConfig
 from splitter_ik.core.joint_health import NOT_FOLLOWING, Detection, JointHealthMonitor
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.actuators import TETHER_INDEX
+from splitter_model.joints import JOINT_NAMES
 from splitter_model.model import (
     PAPER_INITIAL_RADII_M,
     RobotModel,
@@ -461,6 +462,13 @@ class AllocatorTick:
                 problems.append("tension below the required margin")
         elif self.angular_velocity is None:
             problems.append("no angular velocity yet: tension not checked")
+        symptoms = self.health.symptoms
+        values["fault_handling"] = self.health.enabled
+        values["faulty_joints"] = (
+            ", ".join(f"{JOINT_NAMES[j]} {s}" for j, s in sorted(symptoms.items())) or "none"
+        )
+        if symptoms:
+            problems.append(f"{len(symptoms)} faulty joint(s): planning without them")
         if w.rejected:
             problems.append(f"{w.rejected} input(s) rejected")
         if w.saturated:
@@ -468,4 +476,5 @@ class AllocatorTick:
         message = "; ".join(problems) if problems else "tracking"
         if w.rate_limited and not problems:
             message = "tracking, rate limited"
-        return AllocatorStatus(level=1 if problems else 0, message=message, values=values)
+        level = 2 if symptoms else 1 if problems else 0  # a broken joint is an error
+        return AllocatorStatus(level=level, message=message, values=values)
