@@ -47,7 +47,7 @@ _LOG = logging.getLogger(__name__)
 # manager also takes the measured inertia when its reference is momentum-aligned
 # (orientation_tracking): :func:`graph_subscriptions`.
 SUBSCRIPTIONS: dict[str, tuple[str, ...]] = {
-    "simulator": (names.JOINT_COMMANDS, names.JUMP_COMMAND),
+    "simulator": (names.JOINT_COMMANDS, names.JUMP_COMMAND, names.FAULT_INJECTION),
     "gait_phase_manager": (
         names.IMU,
         *names.RANGES,
@@ -62,8 +62,14 @@ SUBSCRIPTIONS: dict[str, tuple[str, ...]] = {
         names.GAIT_PHASE,
         names.STANCE_SHAPE,
         names.JUMP_COMMAND,
+        names.JOINT_HEALTH,
     ),
-    "ik_tether_allocator": (names.INERTIA_SETPOINT, names.IMU, names.INERTIA),
+    "ik_tether_allocator": (
+        names.INERTIA_SETPOINT,
+        names.IMU,
+        names.INERTIA,
+        names.JOINT_STATES,
+    ),
 }
 # Per controller: the topic it answers a control tick on, and the inputs it waits for
 # (None: every topic it subscribes to).

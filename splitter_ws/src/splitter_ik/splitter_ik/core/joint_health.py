@@ -29,6 +29,7 @@ ROS-free, numpy only.
 
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from dataclasses import dataclass
 
@@ -201,14 +202,11 @@ class JointHealthMonitor:
 
     def _command_at(self, t_ns: int) -> NDArray[np.float64] | None:
         """Where the command in force at ``t_ns`` (the last stamped at or before it) is then."""
-        chosen = None
-        for stamp, q, v in self._commands:
-            if stamp > t_ns:
-                break
-            chosen = (stamp, q, v)
-        if chosen is None:
+        commands = self._commands
+        k = bisect.bisect_right(commands, t_ns, key=lambda c: c[0]) - 1
+        if k < 0:
             return None
-        stamp, q, v = chosen
+        stamp, q, v = commands[k]
         return q + v * min((t_ns - stamp) * 1e-9, self.config.command_extrapolation_s)
 
     def _stuck(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -218,22 +216,29 @@ class JointHealthMonitor:
         if not samples or samples[0][0] > start + round(0.25 * c.stuck_window_s * 1e9):
             return np.zeros(N_JOINTS, dtype=bool)  # not yet a window of measurements
         delay_ns = round(c.command_delay_s * 1e9)
-        still = np.ones(N_JOINTS, dtype=bool)
-        asked = np.ones(N_JOINTS, dtype=bool)
+        none = np.zeros(N_JOINTS, dtype=bool)
+        latest = self._command_at(t_ns - delay_ns)
+        if latest is None:
+            return none
+        suspects = np.abs(latest - q) > self._stuck_error  # asked to move now
+        if suspects.any():
+            measured = np.stack([m for _, m in samples])
+            suspects &= np.all(np.abs(measured - q) <= self._still, axis=0)  # and still
+        if not suspects.any():
+            return none
         for t, m in samples:
-            still &= np.abs(m - q) <= self._still
             command = self._command_at(t - delay_ns)
             if command is None:
-                return np.zeros(N_JOINTS, dtype=bool)
-            asked &= np.abs(command - m) > self._stuck_error
-        return still & asked
+                return none
+            suspects &= np.abs(command - m) > self._stuck_error
+        return suspects
 
     def _outside_commands(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         c = self.config
         start = t_ns - round(c.envelope_window_s * 1e9)
         reach = self.config.command_extrapolation_s
-        window = [q for stamp, q, _ in self._commands if stamp >= start]
-        window += [q + v * reach for stamp, q, v in self._commands if stamp >= start]
+        recent = [(q, v) for stamp, q, v in self._commands if stamp >= start]
+        window = [q for q, _ in recent] + [q + v * reach for q, v in recent if v.any()]
         before = self._command_at(start)
         if before is not None:
             window.append(before)

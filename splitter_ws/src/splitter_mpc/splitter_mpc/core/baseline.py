@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from splitter_model.model import RobotModel
+from splitter_model.reachable import ReachableSet
 from splitter_mpc.core.limits import axis_inertia_range, morphing_limits
 from splitter_mpc.core.mpc import MpcPlan, MpcSettings, PlanRequest
 from splitter_mpc.core.ocp import discrete_dynamics, momentum_target
@@ -130,6 +131,21 @@ class OptiBaselineMpc:
     @property
     def horizon(self) -> int:
         return self.settings.horizon
+
+    @property
+    def reachable(self) -> ReachableSet:
+        """The reachable set it plans within (the model's: the baseline knows no faults)."""
+        return self.limits.reachable
+
+    @property
+    def radius_bounds_m(self) -> None:
+        """No fault's radius bounds: the baseline plans the whole reachable set."""
+        return None
+
+    def set_radius_bounds(self, radius_min_m: object, radius_max_m: object) -> None:
+        """Refused unless None (a benchmark of the nominal problem)."""
+        if radius_min_m is not None or radius_max_m is not None:
+            raise ValueError("the Opti baseline plans the nominal reachable set only")
 
     def reset(self) -> None:
         self._last = None
