@@ -69,7 +69,7 @@ _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is
 _PATH_FRACTIONS = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: the target, 1: the tether now
 _PATH_FRACTIONS.flags.writeable = False
 # [rad/s] a held limb folds, and its mirror follows it, at this speed: smooth enough that
-# the servos track it within ~0.01 rad (the detector's "not following" margin is 0.05)
+# the servos track it within ~0.01 rad (the detector's "not following" margin is 0.02)
 HELD_LIMB_SPEED_RAD_S = 2.0
 _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
 
