@@ -181,14 +181,24 @@ class IkTetherAllocatorNode(Node):
         self._take(names.INERTIA, msg, use)
 
     def _on_joint_states(self, msg: JointState) -> None:
-        """Measured joints: faults found, then ``/splitter/joint_health`` while there are any."""
+        """Measured joints: faults found, then ``/splitter/joint_health`` while there are any.
+
+        A bad stamp (negative, behind the last, far ahead) or content (names, sizes,
+        non-finite) is warned and counted; nothing is changed."""
+        core = self.core
+        t_ns = admitted_stamp(self, core.stamps, names.JOINT_STATES, msg, key="joint_states")
+        if t_ns is None:
+            core.count_rejected()
+            return
         try:
             sample = joint_state_from_msg(msg)
         except MessageValidationError as exc:
-            warn_throttled(self, "joint_states", f"rejected {names.JOINT_STATES}: {exc}")
+            core.count_rejected()
+            warn_throttled(
+                self, "joint_states", f"rejected {names.JOINT_STATES}: {exc}; nothing changed"
+            )
             return
-        core = self.core
-        for detection in core.joint_states(sample.t_ns, sample.position):
+        for detection in core.joint_states(t_ns, sample.position):
             self.get_logger().error(
                 f"t = {detection.t_ns * 1e-9:.3f} s: joint {detection.joint_name} is faulty "
                 f"({detection.symptom}): re-planning without it"
@@ -198,7 +208,7 @@ class IkTetherAllocatorNode(Node):
         health = joint_health_status(
             core.health.symptoms, core.remaining.reachable(core.model), NODE_NAME
         )
-        self._health_pub.publish(diagnostics_to_msg(sample.t_ns, [health]))
+        self._health_pub.publish(diagnostics_to_msg(t_ns, [health]))
 
     def _take(self, topic: str, msg, use: Callable[[int], TickOutput]) -> None:
         """Admit the stamp of ``msg``, hand it to the core (``use``), publish the outcome."""

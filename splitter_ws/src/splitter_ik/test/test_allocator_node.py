@@ -21,7 +21,7 @@ from splitter_model.kinematics import radii_from_joint_positions
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_msgs_py import conversions as conv
 from splitter_msgs_py import names
-from splitter_msgs_py.parameters import InvalidParameterError
+from splitter_msgs_py.parameters import InvalidParameterError, rejection_counts
 from splitter_msgs_py.qos import qos_for
 
 MODEL = RobotModel()
@@ -192,3 +192,48 @@ def test_invalid_parameter_stops_start_up_naming_it(ros_context, name: str, valu
         IkTetherAllocatorNode(
             context=ros_context, parameter_overrides=[Parameter(name, value=value)]
         )
+
+
+def test_a_stuck_knee_in_the_joint_states_is_found_and_published(ros_context) -> None:
+    """The probe plays a robot whose hemi_a_y_pos_knee stays where it started while every
+    other joint follows the commands; a NaN joint state and one stamped behind in between
+    are refused. The allocator finds the knee stuck once it is asked to move and
+    publishes /splitter/joint_health with the knee and the radius bounds that remain."""
+    node, probe, executor = _graph(ros_context, initialize_from_measured_inertia=False)
+    health: list[DiagnosticArray] = []
+    probe.create_subscription(
+        DiagnosticArray, names.JOINT_HEALTH, health.append, qos_for(names.JOINT_HEALTH)
+    )
+    joints_pub = probe.create_publisher(JointState, names.JOINT_STATES, qos_for(names.JOINT_STATES))
+    _spin(executor, lambda: joints_pub.get_subscription_count() > 0)
+    knee = names.JOINT_INDEX["hemi_a_y_pos_knee"]
+    try:
+        target = principal_inertia(MODEL, [2.8, 0.35, 0.2])  # the y knees must move
+        start = None
+        for k in range(40):
+            t = k * TICK_NS
+            q = conv.joint_state_from_msg(probe.commands[-1]).position if probe.commands else None
+            if q is not None:
+                start = q[knee] if start is None else start
+                q = q.copy()
+                q[knee] = start
+                joints_pub.publish(conv.joint_state_to_msg(t, q, np.zeros(25)))
+                if k == 5:
+                    bad = conv.joint_state_to_msg(t + 1, q, np.zeros(25))
+                    bad.position[3] = math.nan
+                    joints_pub.publish(bad)
+                    joints_pub.publish(conv.joint_state_to_msg(t - TICK_NS, q, np.zeros(25)))
+            probe.imu(t, [0.0, 1.0, 0.0])
+            probe.setpoint(t, target)
+            _spin(executor, lambda k=k: len(probe.commands) == k + 1)
+        _spin(executor, lambda: len(health) > 0)
+        found = conv.joint_health_from_msg(health[-1])
+        assert found.symptoms == {"hemi_a_y_pos_knee": "stuck"}
+        assert found.radius_min_m[1] > MODEL.limb_radius_min_m  # two y limbs held out
+        first = conv.stamp_from_msg(health[0].header.stamp)
+        assert first <= 30 * TICK_NS
+        status = node.diagnostics_status()
+        assert status.level == 2 and "hemi_a_y_pos_knee stuck" in status.values["faulty_joints"]
+        assert rejection_counts(node).get("joint_states", 0) == 2  # the NaN, the one behind
+    finally:
+        _teardown(node, probe, executor)

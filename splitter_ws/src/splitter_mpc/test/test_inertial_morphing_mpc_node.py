@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,7 +22,9 @@ from splitter_mpc.inertial_morphing_mpc_node import InertialMorphingMpcNode
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
     diagnostics_from_msg,
+    diagnostics_to_msg,
     imu_to_msg,
+    joint_health_status,
     pose_to_msg,
     stamp_from_msg,
     twist_to_msg,
@@ -214,3 +218,43 @@ def test_parameter_file_is_valid(ros_context) -> None:
         assert node.controller.config.weights.q_t == (100.0, 10.0, 100.0)
     finally:
         node.destroy_node()
+
+
+def test_joint_health_bounds_the_plans_from_the_next_tick_bad_ones_refused(graph) -> None:
+    """/splitter/joint_health (the allocator's, after a fault): its radius bounds are planned
+    within from the first tick after its stamp; one that names no known joint or has
+    bounds out of order is refused, the last good kept."""
+    mpc, fake, executor = graph
+    pub = fake.node.create_publisher(
+        DiagnosticArray, names.JOINT_HEALTH, qos_for(names.JOINT_HEALTH)
+    )
+    spin_until(executor, lambda: pub.get_subscription_count() > 0)
+    fake.publish_reference(0)
+    fake.phase.publish(String(data="IN_FLIGHT"))
+    tick(fake, executor, 0)
+    low, high = np.array([1.39, 0.2, 0.107]), np.array([1.41, 0.3, 0.397])  # reel locked
+    bounds = SimpleNamespace(radius_min_m=low, radius_max_m=high)
+    status = joint_health_status({names.JOINT_INDEX["tether"]: "stuck"}, bounds, "allocator")
+    pub.publish(diagnostics_to_msg(10 * MS, [status]))
+    spin_until(executor, lambda: bool(mpc.controller._pending_bounds))
+    tick(fake, executor, 10)  # the health of tick 10 is not yet for tick 10
+    assert mpc.controller.mpc.radius_bounds_m is None
+    tick(fake, executor, 20)
+    np.testing.assert_array_equal(mpc.controller.mpc.radius_bounds_m[0], low)
+    np.testing.assert_array_equal(mpc.controller.mpc.radius_bounds_m[1], high)
+    swapped = {f"radius_min_{a}_m": float(v) for a, v in zip("xyz", high, strict=True)}
+    pub.publish(diagnostics_to_msg(20 * MS, [replace(status, values={**status.values, **swapped})]))
+    spin_until(executor, lambda: rejection_counts(mpc).get("joint_health") == 1)  # depth 1
+    not_a_number = diagnostics_to_msg(20 * MS, [status])
+    for kv in not_a_number.status[0].values:
+        if kv.key == "radius_max_y_m":
+            kv.value = "nan"
+    pub.publish(not_a_number)
+    spin_for(executor, 0.2)
+    tick(fake, executor, 30)
+    assert rejection_counts(mpc).get("joint_health") == 2
+    np.testing.assert_array_equal(mpc.controller.mpc.radius_bounds_m[0], low)
+    for t_ms in range(40, 110, 10):  # the next re-plan (every 100 ms) plans within them
+        tick(fake, executor, t_ms)
+    radii = np.asarray(mpc.controller.plan.radii)
+    assert np.all(radii[:, 0] >= low[0] - 1e-6) and np.all(radii[:, 0] <= high[0] + 1e-6)
