@@ -88,8 +88,12 @@ def test_a_reel_locked_at_runtime_is_found_and_the_flight_converges(tmp_path: Pa
     found = [t for t, s in health if names.TETHER_JOINT in s.values]
     assert found and 0.0 < found[0] - locked[0] <= 0.2  # the reel was moving: asked to
     series = read_run_series(bag)
+    tether = names.JOINT_INDEX[names.TETHER_JOINT]
+    marks = series.extras  # what the flight figure marks, from the bag
+    assert marks["joint_fault"][-1, tether] == 1 and marks["joint_detected"][-1, tether] == 1
+    assert series.t_s[np.argmax(marks["joint_detected"][:, tether] > 0)] == pytest.approx(found[0])
     outcome = classify_flight(series.t_s, series.angular_velocity_rad_s)
     assert outcome.success, outcome
-    tether = series.joint_position[:, names.JOINT_INDEX[names.TETHER_JOINT]]
+    length = series.joint_position[:, tether]
     after = series.t_s > locked[0] + 0.01
-    assert np.ptp(tether[after]) == 0.0  # locked where it was
+    assert np.ptp(length[after]) == 0.0  # locked where it was

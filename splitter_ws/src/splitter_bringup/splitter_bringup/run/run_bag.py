@@ -120,7 +120,35 @@ def read_run_series(
             gravity_m_s2 = float(custom.get(GRAVITY_KEY, 0.0))
         except ValueError as exc:
             raise BagSeriesError(f"custom_data {GRAVITY_KEY}: {exc}") from exc
-    return series_from_samples(decode_bag(bag_dir), model, gravity_m_s2)
+    series = series_from_samples(decode_bag(bag_dir), model, gravity_m_s2)
+    series.extras.update(fault_extras_from_bag(bag_dir, series.t_s))
+    return series
+
+
+def fault_extras_from_bag(bag_dir: Path | str, t_s: NDArray[np.float64]) -> dict[str, NDArray]:
+    """``joint_fault`` (the simulator's, ``splitter_model.faults.FAULT_CODES``) and
+    ``joint_detected`` (1 once the allocator found a joint faulty), (n, 25) at the series
+    times, from ``/splitter/truth/joint_faults`` and ``/splitter/joint_health``; the library
+    loop's extras of the same names. Empty when neither was recorded."""
+    from splitter_model.faults import FAULT_CODES
+
+    grid = np.round(np.asarray(t_s) * NS_PER_S).astype(np.int64)
+    out = {"joint_fault": np.zeros((len(grid), names.N_JOINTS)), "joint_detected": None}
+    out["joint_detected"] = np.zeros_like(out["joint_fault"])
+    recorded = False
+    topics = {names.TRUTH_JOINT_FAULTS: "joint_fault", names.JOINT_HEALTH: "joint_detected"}
+    for m in read_messages(bag_dir, topics=list(topics)):
+        msg = deserialize_message(m.data, TOPIC_MESSAGE_CLASSES[m.topic])
+        since = grid >= cv.stamp_from_msg(msg.header.stamp)
+        for status in cv.diagnostics_from_msg(msg):
+            for key, value in status.values.items():
+                j = names.JOINT_INDEX.get(key)
+                if j is None:
+                    continue
+                recorded = True
+                code = FAULT_CODES.get(str(value), 0) if m.topic == names.TRUTH_JOINT_FAULTS else 1
+                out[topics[m.topic]][since, j] = code
+    return out if recorded else {}
 
 
 def read_wall_timing(bag_dir: Path | str) -> tuple[float, float]:
