@@ -37,7 +37,14 @@ from splitter_model.sensors import (
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
 from splitter_msgs_py.core.stamps import MessageValidationError
-from splitter_sim.core.scene import BODY_INDICES, N_MASSES, Box, Scene, ground_boxes
+from splitter_sim.core.scene import (
+    BODY_INDICES,
+    FAULT_COLOR,
+    N_MASSES,
+    Box,
+    Scene,
+    ground_boxes,
+)
 from splitter_sim.core.simulator import SimState
 from splitter_sim.core.tick import SensorReadings
 
@@ -49,6 +56,7 @@ TETHER_WIDTH_M = 0.02  # [m] line width
 LIMB_WIDTH_M = 0.03  # [m] line width
 ARROW_SCALE_M = (0.03, 0.06, 0.1)  # [m] shaft, head width, head length
 GROUND_NS = "splitter_ground"  # id 0: the base plane, 1 + i: step i
+FAULT_NS = "splitter_faults"  # the limbs with a failed joint and a locked reel, red
 
 
 def _point(p: Sequence[float]) -> Point:
@@ -88,6 +96,15 @@ def scene_markers(scene: Scene) -> MarkerArray:
     limbs.color.r, limbs.color.g, limbs.color.b, limbs.color.a = 0.3, 0.3, 0.3, 1.0
     limbs.points = [_point(p) for segment in scene.limb_segments_m for p in segment]
     out.markers.append(limbs)
+    if scene.faulty_limbs or scene.reel_locked:  # drawn over the limbs and the tether, red
+        faults = _marker(stamp, FAULT_NS, 0, Marker.LINE_LIST)
+        faults.scale.x = 2.0 * LIMB_WIDTH_M
+        faults.color.r, faults.color.g, faults.color.b, faults.color.a = FAULT_COLOR
+        segments = [scene.limb_segments_m[i] for i in sorted(scene.faulty_limbs)]
+        if scene.reel_locked:
+            segments.append(scene.tether_m)
+        faults.points = [_point(p) for segment in segments for p in segment]
+        out.markers.append(faults)
     for i, arrow in enumerate(scene.arrows):
         m = _marker(stamp, "splitter_arrows", i, Marker.ARROW)
         m.text = arrow.name

@@ -183,3 +183,22 @@ def test_a_limp_knee_rests_on_its_fold_stop_when_the_hip_is_pitched_to_it() -> N
             assert max(energy) - min(energy) < 1e-9 * energy[0]
         else:
             assert last.max() - last.min() > 0.1  # [rad] still swinging
+
+
+def test_the_scene_draws_a_failed_limb_and_a_locked_reel_red() -> None:
+    from splitter_sim.core.scene import FAULT_COLOR, scene_of_state
+    from splitter_sim.messages import FAULT_NS, scene_markers
+
+    sim = _flight({"hemi_b_z_neg_knee": "locked", "tether": "locked"}, at_s=0.0)
+    healthy = scene_of_state(sim.state())
+    assert healthy.faulty_limbs == frozenset() and not healthy.reel_locked
+    assert all(m.ns != FAULT_NS for m in scene_markers(healthy).markers)
+    sim.step()
+    scene = scene_of_state(sim.state())
+    limb = JOINT_INDEX["hemi_b_z_neg_knee"] // 3
+    assert scene.faulty_limbs == {limb} and scene.reel_locked
+    (red,) = [m for m in scene_markers(scene).markers if m.ns == FAULT_NS]
+    assert (red.color.r, red.color.g, red.color.b, red.color.a) == pytest.approx(FAULT_COLOR)
+    points = np.array([[p.x, p.y, p.z] for p in red.points])
+    np.testing.assert_allclose(points[:2], scene.limb_segments_m[limb])
+    np.testing.assert_allclose(points[2:], scene.tether_m)

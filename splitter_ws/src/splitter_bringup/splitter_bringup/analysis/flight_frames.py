@@ -93,6 +93,7 @@ def flight_frames(
     if forces is not None and forces.shape != (len(series), 2, 3):
         raise ValueError(f"contact forces must be ({len(series)}, 2, 3), got {forces.shape}")
     ground = Ground(terrain=terrain) if series.gravity_m_s2 > 0.0 else None
+    faults = series.extras.get("joint_fault")  # drawn red (the library's, a bag's)
     scenes = []
     captions = []
     for i in idx:
@@ -109,6 +110,7 @@ def flight_frames(
                 angular_velocity_rad_s=w,
                 contact_forces_n=None if forces is None else forces[i],
                 ground=ground,
+                joint_fault=None if faults is None else faults[i],
             )
         )
         phase = series.gait_phase[i] if series.gait_phase else ""

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from splitter_bringup.analysis.flight_frames import FlightFrames
-from splitter_sim.core.scene import HEMI_MASSES, LIMB_SEGMENTS, Ground, Scene
+from splitter_sim.core.scene import FAULT_COLOR, HEMI_MASSES, LIMB_SEGMENTS, Ground, Scene
 
 _log = logging.getLogger(__name__)
 DEFAULT_SIZE_PX = (480, 360)  # (width, height) [px]; multiples of 8 for H.264
@@ -29,6 +29,8 @@ DPI = 80  # [px/in]
 FORMATS = (".mp4", ".gif")
 BODY_SIZE = 60  # [pt^2] marker area of a hemi body
 TIP_SIZE = 25  # [pt^2] marker area of a limb tip
+TETHER_COLOR = "0.4"  # grey (a locked reel: FAULT_COLOR)
+LIMB_COLOR = "0.25"  # grey (a limb with a failed joint: FAULT_COLOR)
 HEMI_COLORS = ("tab:orange", "tab:blue")  # hemi a, hemi b (the simulator's marker colours)
 VIEW_ELEVATION_DEG = 20.0  # [deg]
 VIEW_AZIMUTH_DEG = -60.0  # [deg]
@@ -163,8 +165,8 @@ class _Scene:
             axis.set_major_locator(MaxNLocator(TICKS_PER_AXIS))
         self.fig.suptitle(title, fontsize=9, y=0.985)
         self.caption = self.fig.text(0.5, 0.015, "", ha="center", fontsize=8, family="monospace")
-        self.tether = self.ax.plot([], [], [], color="0.4", lw=1.5)[0]
-        self.limbs = [self.ax.plot([], [], [], color="0.25", lw=1.2)[0] for _ in LIMB_SEGMENTS]
+        self.tether = self.ax.plot([], [], [], color=TETHER_COLOR, lw=1.5)[0]
+        self.limbs = [self.ax.plot([], [], [], color=LIMB_COLOR, lw=1.2)[0] for _ in LIMB_SEGMENTS]
         self.bodies = []
         self.tips = []
         for color in HEMI_COLORS:
@@ -218,8 +220,12 @@ class _Scene:
         """The artists at ``scene``, in a cube of half side ``h`` about its centre of mass."""
         masses = scene.mass_positions_m
         self.tether.set_data_3d(*scene.tether_m.T)
-        for line, segment in zip(self.limbs, scene.limb_segments_m, strict=True):
+        for i, (line, segment) in enumerate(zip(self.limbs, scene.limb_segments_m, strict=True)):
             line.set_data_3d(*segment.T)
+            faulty = i in scene.faulty_limbs
+            line.set_color(FAULT_COLOR[:3] if faulty else LIMB_COLOR)
+            line.set_linewidth(2.4 if faulty else 1.2)
+        self.tether.set_color(FAULT_COLOR[:3] if scene.reel_locked else TETHER_COLOR)
         for hemi, indices in enumerate(HEMI_MASSES):
             self.bodies[hemi].set_data_3d(*masses[[indices[0]]].T)
             self.tips[hemi].set_data_3d(*masses[list(indices[1:])].T)

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from splitter_model.joints import N_JOINTS, TETHER_INDEX
 from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
 from splitter_model.terrain import FLAT, Terrain
@@ -52,6 +53,7 @@ GROUND_HALF_SIDE_M = 8.0  # [m] half the side of the drawn base plane, about the
 GROUND_THICKNESS_M = 0.02  # [m] thickness of the drawn base plane (its top is the plane)
 GROUND_COLOR = (0.6, 0.6, 0.6, 0.5)  # RGBA
 STEP_COLOR = (0.55, 0.45, 0.35, 0.9)  # RGBA
+FAULT_COLOR = (0.95, 0.1, 0.1, 1.0)  # RGBA: a limb with a failed joint, a locked reel
 BASE_PLANE = "base_plane"  # name of the base plane's box; a step's is "step_<index>"
 
 
@@ -267,6 +269,9 @@ class Scene:
     contact_forces_n: NDArray[np.float64] | None = None  # (2, 3) ground on hemi a, b [N]
     contact_torques_n_m: NDArray[np.float64] | None = None  # (2, 3) about each hemi body [N m]
     ground: Ground | None = None  # None: no ground (free flight)
+    # limbs (LIMB_SEGMENTS order) with a failed joint, and the reel locked (ground truth)
+    faulty_limbs: frozenset[int] = frozenset()
+    reel_locked: bool = False
 
     @property
     def hemi_centres_m(self) -> NDArray[np.float64]:
@@ -328,8 +333,12 @@ def scene_from_pose(
     contact_forces_n: ArrayLike | None = None,
     contact_torques_n_m: ArrayLike | None = None,
     ground: Ground | None = None,
+    joint_fault: ArrayLike | None = None,
 ) -> Scene:
-    """The scene of one instant: pose, masses, principal inertia, body rate, contacts."""
+    """The scene of one instant: pose, masses, principal inertia, body rate, contacts;
+    ``joint_fault`` (25, ``splitter_model.faults.FAULT_CODES``, 0 healthy) marks the
+    limbs with a failed joint and a locked reel."""
+    faults = np.zeros(N_JOINTS) if joint_fault is None else np.asarray(joint_fault).reshape(-1)
     h = angular_momentum_world(orientation_wxyz, principal_inertia_kg_m2, angular_velocity_rad_s)
     return Scene(
         t_ns=int(t_ns),
@@ -340,6 +349,10 @@ def scene_from_pose(
         contact_forces_n=_array(contact_forces_n, (2, 3)),
         contact_torques_n_m=_array(contact_torques_n_m, (2, 3)),
         ground=ground,
+        faulty_limbs=frozenset(
+            {int(j) // 3 for j in np.flatnonzero(faults[:TETHER_INDEX]).tolist()}
+        ),
+        reel_locked=bool(faults[TETHER_INDEX]),
     )
 
 
@@ -355,4 +368,5 @@ def scene_of_state(state: SimState, ground: Ground | None = None) -> Scene:
         contact_forces_n=state.contact_force_n,
         contact_torques_n_m=state.contact_torque_n_m,
         ground=ground,
+        joint_fault=state.joint_fault,
     )
