@@ -97,3 +97,32 @@ def test_a_reel_locked_at_runtime_is_found_and_the_flight_converges(tmp_path: Pa
     length = series.joint_position[:, tether]
     after = series.t_s > locked[0] + 0.01
     assert np.ptp(length[after]) == 0.0  # locked where it was
+
+
+@pytest.mark.slow
+def test_a_scheduled_limp_knee_flies_the_same_through_the_graph_and_the_library(
+    tmp_path: Path,
+) -> None:
+    """The simulator's limp joint, the allocator's detection and re-plan and the MPC's
+    bounds in the graph's lockstep order: every summary metric as in the library loop."""
+    from dataclasses import replace
+
+    from splitter_bringup.analysis.summary import metric_values
+    from splitter_bringup.run.graph_run import run_graph_scenario
+    from splitter_bringup.run.library import run_closed_loop
+    from splitter_bringup.scenario.definition import load_scenario
+    from splitter_model.faults import JointFault
+    from splitter_tools.bench_graph import largest_relative_difference
+
+    scenario = replace(
+        load_scenario("spin_stabilization_reel_locked", "mpc"),
+        faults=(JointFault("hemi_a_y_pos_knee", "limp", 0.5),),
+        duration_s=3.0,
+    )
+    graph = run_graph_scenario(scenario, tmp_path)
+    library = run_closed_loop(scenario)
+    assert graph.extras["joint_detected"][-1, names.JOINT_INDEX["hemi_a_y_pos_knee"]] == 1
+    worst, metric = largest_relative_difference(
+        metric_values(graph, scenario), metric_values(library, scenario)
+    )
+    assert worst < 1e-9, f"{metric} differs by {worst:.3g} between graph and library"

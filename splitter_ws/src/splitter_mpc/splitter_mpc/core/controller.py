@@ -276,8 +276,8 @@ class MorphingController(Closable):
         stamp_ns: int | None = None,
     ) -> None:
         """Plan within the radius bounds [m] a fault left (``splitter_model.redundancy``);
-        None: the model's. ``stamp_ns``: found at that tick, so used from the ticks after
-        it (the graph's allocator publishes them while the MPC may be planning that tick).
+        None: the model's. ``stamp_ns``: found then, so used from the second control tick
+        after it on (:meth:`_apply_pending_bounds`).
         Raises ``ValueError`` for bounds that are not finite with 0 < min < max."""
         bounds = checked_radius_bounds(radius_min_m, radius_max_m) or (None, None)
         if stamp_ns is None:
@@ -287,12 +287,18 @@ class MorphingController(Closable):
             self._pending_bounds.append((int(stamp_ns), *bounds))
 
     def _apply_pending_bounds(self, t_ns: int) -> None:
-        """The latest radius bounds stamped before ``t_ns`` (whatever came after stays)."""
-        due = [b for b in self._pending_bounds if b[0] < t_ns]
+        """The latest radius bounds stamped at the previous control tick or before.
+
+        In lockstep everything stamped then has arrived: the allocator published it while
+        answering that tick, before the simulator stepped on; what is stamped later may
+        still be on its way (a graph and the library loop would differ).
+        """
+        cutoff = t_ns - self.config.control_period_ns
+        due = [b for b in self._pending_bounds if b[0] <= cutoff]
         if due:
             _, low, high = max(due, key=lambda b: b[0])
             self.mpc.set_radius_bounds(low, high)
-            self._pending_bounds = [b for b in self._pending_bounds if b[0] >= t_ns]
+            self._pending_bounds = [b for b in self._pending_bounds if b[0] > cutoff]
 
     def inject_solver_failures(self, count: int = 1) -> None:
         """Treat the next ``count`` solves as failed (tests of the failure handling)."""
