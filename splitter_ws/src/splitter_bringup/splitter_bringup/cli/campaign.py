@@ -402,6 +402,8 @@ def main(args: argparse.Namespace) -> int:
             doc = scenario_document(
                 base, draw, scenario.duration_s, robot_errors_for_draw(draw, spec)
             )
+            if not spec.fault_handling:  # flown blind: so is the file
+                doc["fault_handling"] = False
             entry.update(write_draw_scenario(out, draw.index, doc))
         per_draw.append(entry)
     document = {
