@@ -68,9 +68,6 @@ KNEE_Z_INDEX = 8  # hemi_a_z_pos_knee
 _PATH_SAMPLES = 17  # points on the way to a reel-in target where the braking is checked
 _PATH_FRACTIONS = np.linspace(0.0, 1.0, _PATH_SAMPLES)  # 0: the target, 1: the tether now
 _PATH_FRACTIONS.flags.writeable = False
-# [rad/s] a held limb folds, and its mirror follows it, at this speed: smooth enough that
-# the servos track it within ~0.01 rad (the detector's "not following" margin is 0.02)
-HELD_LIMB_SPEED_RAD_S = 2.0
 _RATE_LIMIT_TOLERANCE = 1e-12  # [m, rad] drive-coordinate gap counted as "rate limited"
 
 
@@ -186,6 +183,7 @@ class _State:
     drive: NDArray[np.float64]  # (L, knee_y, knee_z) [m, rad, rad]
     drive_rate: NDArray[np.float64]  # their rates
     joint_position: NDArray[np.float64]  # (25,)
+    joint_rate: NDArray[np.float64] | None = None  # (25,) of the segment that led here
 
 
 def _frozen(a: ArrayLike) -> NDArray[np.float64]:
@@ -369,8 +367,9 @@ class TetherLimbAllocator:
         q[TETHER_INDEX] = drive[0]
         measured = self._measured_q
         failed = remaining.failed_joints
-        before = self._state.joint_position if self._state is not None else measured
-        step = HELD_LIMB_SPEED_RAD_S * self.config.control_period_s
+        start = self._state
+        before = start.joint_position if start is not None else measured
+        rate = start.joint_rate if start is not None and start.joint_rate is not None else None
         for limb in remaining.roles.held:
             held = held_limb_command(
                 self.model, limb, measured[limb_joints(limb)], remaining.moving_faults
@@ -378,9 +377,16 @@ class TetherLimbAllocator:
             q[limb_joints(limb)] = held
         for mirror, limb in remaining.roles.mirrors:
             q[limb_joints(mirror)] = q[limb_joints(limb)]
-        for limb in remaining.roles.copied:  # towards their poses at a speed servos track
-            joints = limb_joints(limb)
-            q[joints] = before[joints] + np.clip(q[joints] - before[joints], -step, step)
+        # towards their poses within the knees' speed and acceleration (as the free limbs
+        # move), from the speed they had: a joint stopped at once would overshoot its stop
+        dt, knee = self.config.control_period_s, self._limits[1]
+        for limb in remaining.roles.copied:
+            for j in range(limb_joints(limb).start, limb_joints(limb).stop):
+                limits = AxisLimits(
+                    self._q_min[j], self._q_max[j], knee.speed_max, knee.acceleration_max
+                )
+                v = 0.0 if rate is None else float(rate[j])
+                q[j] = limited_step(float(before[j]), v, float(q[j]), dt, limits)[0]
         for joint in failed:  # what it is: its servo does not act
             if joint != TETHER_INDEX:
                 q[joint] = measured[joint]
@@ -477,8 +483,14 @@ class TetherLimbAllocator:
                 q = self._fault_joint_positions(drive)
             drive = q[self._drive_index].copy()
             rate = (drive - start.drive) / dt
-            state = _State(t_ns=t_ns, drive=drive, drive_rate=rate, joint_position=q)
             here = start
+            state = _State(
+                t_ns=t_ns,
+                drive=drive,
+                drive_rate=rate,
+                joint_position=q,
+                joint_rate=(q - here.joint_position) / dt,
+            )
             # (q_next - q) / dt, clipped by the rounding of x + v dt: consumers (the
             # simulator's servo) reject any command over the speed limit
             joint_velocity = np.clip((q - here.joint_position) / dt, -self._speed, self._speed)
