@@ -13,10 +13,13 @@ without faults):
 
 Detection (from the flight's series, ``joint_detected`` and ``joint_command``):
 the first time the faulty joint was found, its latency from the first commanded
-motion of that joint after the fault (its command farther than the detector's
-"stuck" threshold from where the joint is, or, for a limp joint, the joint moving
-by as much by itself: a joint locked while held still shows nothing until then),
-and the joints found faulty that were not (false detections).
+motion of that joint after the fault, and the joints found faulty that were not
+(false detections). The first commanded motion: the start of the first stretch of
+the detector's ``stuck_window_s`` (60 ms) over which the joint's command stays farther
+than its "stuck" threshold from where the joint is (or, for a limp joint, the joint
+has moved by as much by itself). A joint locked while held still shows nothing until
+then; a command that only grazes the threshold (a reel locked at its end, held there
+within a millimetre) does not ask it to move.
 
 ROS-free.
 """
@@ -105,7 +108,9 @@ def fault_detection(
         asked = np.abs(command[k0:] - q[k0:]) > threshold
         if fault.kind == LIMP:
             asked |= np.abs(q[k0:] - q[k0]) > threshold
-        moving = np.flatnonzero(asked)
+        span = max(1, int(np.sum(t[k0:] <= t[k0] + config.stuck_window_s)))  # samples
+        sustained = np.convolve(asked.astype(int), np.ones(span, dtype=int), "valid") == span
+        moving = np.flatnonzero(sustained)
         if moving.size:
             first_motion = float(t[k0 + moving[0]])
     return FaultDetection(detected_s, first_motion, false)
