@@ -10,8 +10,10 @@ and the commands the allocator sent:
 * **stuck** (a locked joint, or a limp one resting at its range's end): over the
   last ``stuck_window_s`` the joint has not moved (within ``still``: an encoder's
   resolution), while every command at least ``command_delay_s`` old (latency) was
-  farther than ``stuck_error`` from where it was. A working servo closes any such
-  error at once, so it never shows this;
+  farther than ``stuck_error`` from where it was, and no nearer at the end of the
+  window than at its start. A working servo closes any such error at once, so it
+  never shows this (a joint that reached its range end ahead of its command waits
+  there while the command comes to it: the error shrinks);
 * **not following** (a limp joint swinging, a runaway): the joint is farther than
   ``envelope_margin`` outside the range of the commands of the last
   ``envelope_window_s``.
@@ -230,12 +232,17 @@ class JointHealthMonitor:
             suspects &= np.all(np.abs(measured - q) <= self._still, axis=0)  # and still
         if not suspects.any():
             return none
+        first_error = None
         for t, m in samples:
             command = self._command_at(t - delay_ns)
             if command is None:
                 return none
-            suspects &= np.abs(command - m) > self._stuck_error
-        return suspects
+            error = np.abs(command - m)
+            suspects &= error > self._stuck_error
+            first_error = error if first_error is None else first_error
+        # a command coming to where the joint waits (a joint that got to its range end
+        # ahead of it) does not ask it to move: the error must not have shrunk
+        return suspects & (error >= first_error)
 
     def _outside_commands(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         c = self.config
