@@ -100,9 +100,19 @@ class LimbRoles:
 
     @classmethod
     def from_failed_joints(cls, failed_joints: Iterable[int]) -> LimbRoles:
-        """The roles when the joints ``failed_joints`` (``JOINT_NAMES`` indices) have failed."""
+        """The roles when the joints ``failed_joints`` (``JOINT_NAMES`` indices) have failed.
+
+        A failed hip abduction holds nothing: the limb's radial pose keeps its tip on the
+        abduction axis, where that joint moves no mass (and a limp one feels no torque),
+        so hip pitch and knee still set its reach (the allocator keeps the abduction
+        where it is)."""
         joints = set(failed_joints)
-        held = frozenset(limb for limb in (limb_of_joint(j) for j in joints) if limb is not None)
+        abduction = LIMB_JOINTS.index("hip_abduction")
+        held = frozenset(
+            limb
+            for j in joints
+            if (limb := limb_of_joint(j)) is not None and j % len(LIMB_JOINTS) != abduction
+        )
         mirrors = tuple(
             sorted((mirror_limb(limb), limb) for limb in held if mirror_limb(limb) not in held)
         )

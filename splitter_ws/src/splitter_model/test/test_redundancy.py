@@ -42,6 +42,8 @@ def test_roles_of_a_failed_knee_and_reel() -> None:
         [JOINT_INDEX["hemi_a_y_pos_knee"], JOINT_INDEX["hemi_a_y_neg_hip_pitch"]]
     )
     assert both.held == {0, 1} and both.mirrors == ()
+    abduction = LimbRoles.from_failed_joints([JOINT_INDEX["hemi_b_z_pos_hip_abduction"]])
+    assert abduction.healthy  # the tip stays on that joint's axis: nothing to hold
 
 
 def test_a_mirror_cancels_the_products_of_inertia_of_a_held_limb() -> None:
