@@ -15,7 +15,8 @@ rules, also driven by the library closed loop): messages in, its outputs publish
   simulator keeps running without the MPC (with the IMU of the same tick when an
   IMU publisher exists).
 * ``/splitter/joint_states`` against the commands it sent: faulty joints
-  (:mod:`splitter_ik.core.joint_health`; parameter ``fault_handling``). Once one is
+  (:mod:`splitter_ik.core.joint_health`; parameter ``fault_handling``, thresholds
+  ``stuck_window_s``, ``envelope_margin_rad``, ... set at start-up). Once one is
   found the allocator re-plans without it (``splitter_model.redundancy``) and
   publishes ``/splitter/joint_health`` every tick: the faulty joints, their symptoms
   and the radius bounds that remain (the MPC plans within them).
@@ -64,6 +65,7 @@ from splitter_ik.core.allocator_tick import (
     TickOutput,
 )
 from splitter_ik.core.command_lead import CommandLeadConfig
+from splitter_ik.core.joint_health import JointHealthConfig
 from splitter_model.model import RobotModel
 from splitter_msgs_py import names
 from splitter_msgs_py.conversions import (
@@ -93,7 +95,12 @@ from splitter_msgs_py.qos import qos_for
 NODE_NAME = "ik_tether_allocator"
 STATUS_NAME = f"{NODE_NAME}: allocation"
 CONFIGS = (AllocatorConfig, AllocatorTickSettings, CommandLeadConfig)  # the core's settings
-PARAMETERS = tuple(spec for config in CONFIGS for spec in specs_from_config(config))
+# the fault detector's thresholds: set at start-up (a detector re-tuned mid-flight would
+# judge old commands by new rules)
+HEALTH_CONFIG = JointHealthConfig
+PARAMETERS = tuple(
+    spec for config in (*CONFIGS, HEALTH_CONFIG) for spec in specs_from_config(config)
+)
 # topic: (warning key of a bad stamp, of bad content; what a bad content leads to)
 INPUTS = {
     names.INERTIA_SETPOINT: ("setpoint_stamp", "setpoint", "answering from the last good setpoint"),
@@ -112,6 +119,7 @@ class IkTetherAllocatorNode(Node):
             self.core = AllocatorTick(
                 RobotModel(),
                 *self._configs(values),
+                health=config_from_values(HEALTH_CONFIG, values),
                 clock_ns=lambda: sim_clock_ns(self),
                 publishers=self.count_publishers,
             )

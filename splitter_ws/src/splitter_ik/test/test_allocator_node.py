@@ -15,6 +15,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 
+from splitter_ik.core.joint_health import JointHealthConfig
 from splitter_ik.ik_tether_allocator_node import IkTetherAllocatorNode
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import radii_from_joint_positions
@@ -185,6 +186,9 @@ def test_answers_inertia_ticks_without_a_setpoint_publisher(ros_context) -> None
         ("initial_radii_m", [5.0, 0.2, 0.2]),
         ("initial_radii_m", [2.8, 0.2]),
         ("speed_fraction", 2.0),
+        ("stuck_window_s", 0.0),
+        ("envelope_margin_m", math.nan),
+        ("still_rad", 0.01),  # not below stuck_error_rad: a stuck joint could not show
     ],
 )
 def test_invalid_parameter_stops_start_up_naming_it(ros_context, name: str, value) -> None:
@@ -192,6 +196,22 @@ def test_invalid_parameter_stops_start_up_naming_it(ros_context, name: str, valu
         IkTetherAllocatorNode(
             context=ros_context, parameter_overrides=[Parameter(name, value=value)]
         )
+
+
+def test_the_fault_detector_takes_its_thresholds_from_the_parameters(ros_context) -> None:
+    node = IkTetherAllocatorNode(
+        context=ros_context,
+        parameter_overrides=[
+            Parameter("envelope_margin_rad", value=0.05),
+            Parameter("stuck_window_s", value=0.1),
+        ],
+    )
+    try:
+        config = node.core.health.config
+        assert (config.envelope_margin_rad, config.stuck_window_s) == (0.05, 0.1)
+        assert config.envelope_margin_m == JointHealthConfig().envelope_margin_m
+    finally:
+        node.destroy_node()
 
 
 def test_a_stuck_knee_in_the_joint_states_is_found_and_published(ros_context) -> None:

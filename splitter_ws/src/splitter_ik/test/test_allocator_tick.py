@@ -12,6 +12,7 @@ import yaml
 from splitter_ik.core.allocator import AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.allocator_tick import AllocatorTick, AllocatorTickSettings
 from splitter_ik.core.command_lead import CommandLeadConfig
+from splitter_ik.core.joint_health import JointHealthConfig
 from splitter_ik.core.projection import project_inertia
 from splitter_model.model import RobotModel, principal_inertia
 from splitter_msgs_py import names
@@ -135,7 +136,7 @@ def test_the_parameter_file_sets_exactly_the_core_settings() -> None:
     parameters = yaml.safe_load(path.read_text())["ik_tether_allocator"]["ros__parameters"]
     fields = {
         name: default
-        for config in (AllocatorConfig, AllocatorTickSettings, CommandLeadConfig)
+        for config in (AllocatorConfig, AllocatorTickSettings, CommandLeadConfig, JointHealthConfig)
         for name, default, _ in parameter_fields(config)
     }
     assert set(parameters) - {"use_sim_time"} <= set(fields)

@@ -43,7 +43,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_ik.core.allocator import Allocation, AllocatorConfig, TetherLimbAllocator
 from splitter_ik.core.command_lead import CommandLead, CommandLeadConfig
-from splitter_ik.core.joint_health import NOT_FOLLOWING, Detection, JointHealthMonitor
+from splitter_ik.core.joint_health import (
+    NOT_FOLLOWING,
+    Detection,
+    JointHealthConfig,
+    JointHealthMonitor,
+)
 from splitter_ik.core.projection import project_inertia, reachable_inertia_bounds
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.joints import JOINT_NAMES
@@ -160,6 +165,7 @@ class AllocatorTick:
         settings: AllocatorTickSettings | None = None,
         lead: CommandLeadConfig | None = None,
         *,
+        health: JointHealthConfig | None = None,
         clock_ns: Callable[[], int | None] = _no_clock,
         publishers: Callable[[str], int] | None = None,
     ) -> None:
@@ -198,7 +204,7 @@ class AllocatorTick:
         # [kg m^2] inertia the commands plan at their stamps (the last second), to
         # predict the body rate at a command stamped ahead of its input
         self._planned_inertia: dict[int, NDArray[np.float64]] = {}
-        self.health = JointHealthMonitor(enabled=settings.fault_handling)
+        self.health = JointHealthMonitor(health, enabled=settings.fault_handling)
         self.remaining: RemainingShape | None = None  # what a fault left, once detected
 
     def configure(

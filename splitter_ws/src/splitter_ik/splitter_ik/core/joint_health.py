@@ -100,6 +100,15 @@ class JointHealthConfig:
         bounds=(1e-4, 1.0),
     )
 
+    def __post_init__(self) -> None:
+        for still, asked in (("still_rad", "stuck_error_rad"), ("still_m", "stuck_error_m")):
+            if not getattr(self, still) < getattr(self, asked):
+                raise ValueError(
+                    f"'{still}' ({getattr(self, still):g}) must be below '{asked}' "
+                    f"({getattr(self, asked):g}): a joint asked to move must be able to "
+                    "show it has not"
+                )
+
     def per_joint(self, limb: float, tether: float) -> NDArray[np.float64]:
         """A threshold per joint (25): ``limb`` for the limb joints, ``tether`` for the tether."""
         out = np.full(N_JOINTS, float(limb))
