@@ -13,7 +13,10 @@ import numpy as np
 import pytest
 
 from splitter_bringup.scenario.definition import load_scenario
+from splitter_model.faults import JointFault
 from splitter_msgs_py import names
+from splitter_msgs_py.conversions import joint_health_from_msg
+from splitter_msgs_py.core.stamps import MessageValidationError
 from splitter_msgs_py.inspection import non_finite_fields
 from splitter_tools.garbage import garbage_message, run_with_garbage
 
@@ -29,6 +32,12 @@ def test_garbage_messages_are_garbage() -> None:
     )
     ahead = garbage_message(names.JOINT_COMMANDS, "stamp_ahead", 10_000_000, rng)
     assert ahead.header.stamp.sec >= 3600
+    for _ in range(50):  # the MPC refuses every health report, the simulator every fault
+        with pytest.raises(MessageValidationError):
+            joint_health_from_msg(garbage_message(names.JOINT_HEALTH, "value", 0, rng))
+        fault = garbage_message(names.FAULT_INJECTION, "value", 0, rng)
+        with pytest.raises(ValueError):
+            JointFault(fault.key, fault.value, 0.0)
 
 
 @pytest.mark.slow

@@ -61,6 +61,7 @@ EXPECTED_LIVE = {
         "objective",
         "recovery_spin_rad_s",
         "recovery_momentum_ratio_max",
+        "fault_effort_scale",
         "diagnostics_period_s",
     },
     "ik_tether_allocator": {

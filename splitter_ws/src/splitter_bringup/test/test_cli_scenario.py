@@ -77,6 +77,9 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         ("recovery_spin_rad_s", ".nan"),
         ("recovery_momentum_ratio_max", "0"),
         ("recovery_momentum_ratio_max", "-1"),
+        ("fault_effort_scale", "0"),
+        ("fault_effort_scale", "1.5"),
+        ("fault_effort_scale", ".nan"),
     ):
         bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
         with pytest.raises(ScenarioError, match=field):

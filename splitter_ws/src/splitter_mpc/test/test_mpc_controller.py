@@ -256,3 +256,33 @@ def test_config_rejects_bad_recovery_settings() -> None:
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="recovery_momentum_ratio_max"):
             ControllerConfig(recovery_momentum_ratio_max=bad)
+
+
+def test_after_a_fault_the_effort_weights_are_scaled_from_the_tick_the_bounds_apply(
+    mpc, monkeypatch
+) -> None:
+    ctl = controller(mpc, fault_effort_scale=0.1)
+    seen = []
+    solve = mpc.solve
+    monkeypatch.setattr(
+        mpc, "solve", lambda request: seen.append(request.weights) or solve(request)
+    )
+    r = np.asarray(ctl.weights.r)
+    tick(ctl, 0)
+    lo = np.array([0.5, 0.15, MODEL.limb_radius_min_m])
+    hi = np.array([3.0, 0.3, MODEL.limb_radius_max_m])
+    ctl.set_radius_bounds(lo, hi, stamp_ns=50 * MS)  # found at 50 ms: applied from 60 ms
+    for t_ms in range(10, 110, 10):
+        tick(ctl, t_ms)
+    np.testing.assert_array_equal(seen[0].r, r)  # before the fault
+    np.testing.assert_allclose(seen[1].r, 0.1 * r)  # the re-plan at 100 ms
+    assert seen[1].q_w == seen[0].q_w and ctl.weights.r == tuple(r)  # only R, and per solve
+    ctl.set_radius_bounds(None, None)  # healthy again (a reset): the paper's R
+    tick(ctl, 200)
+    np.testing.assert_array_equal(seen[-1].r, r)
+
+
+def test_config_rejects_a_fault_effort_scale_outside_its_range() -> None:
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="fault_effort_scale"):
+            ControllerConfig(fault_effort_scale=bad)

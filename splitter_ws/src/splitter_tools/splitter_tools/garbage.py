@@ -3,7 +3,9 @@
 :class:`GarbageNode` publishes, at ``rate_hz`` per topic, messages that every node
 must reject (:data:`INPUT_TOPICS`, every topic some node subscribes to): NaN and
 infinite values, finite magnitudes up to 1e300, wrong array sizes, unknown joint
-names, frames and phase strings, stamps zero, backwards or far ahead. Each kind
+names, frames and phase strings, stamps zero, backwards or far ahead; joint-health
+reports with bounds NaN, missing or crossed, or unknown joints; fault injections
+naming no joint or no fault (a valid one would break a joint). Each kind
 is drawn from a seeded generator (deterministic). Garbage is published serialized
 and its payloads are remembered, so that :class:`OutputWatch`, which receives
 every message on those topics, tells the nodes' own outputs from the garbage and
@@ -26,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -35,7 +38,12 @@ from rclpy.signals import SignalHandlerOptions
 from splitter_bringup.run.launcher import LaunchResult, launch
 from splitter_bringup.scenario.definition import Scenario
 from splitter_msgs_py import names
-from splitter_msgs_py.conversions import TOPIC_MESSAGE_CLASSES, stamp_from_msg
+from splitter_msgs_py.conversions import (
+    TOPIC_MESSAGE_CLASSES,
+    joint_health_from_msg,
+    stamp_from_msg,
+)
+from splitter_msgs_py.core.stamps import MessageValidationError
 from splitter_msgs_py.environment import apply_ros_environment
 from splitter_msgs_py.inspection import non_finite_fields
 from splitter_msgs_py.qos import LATCHED_QOS, qos_for
@@ -53,7 +61,11 @@ INPUT_TOPICS = (
     names.ATTITUDE_REFERENCE_POSE,
     names.GAIT_PHASE,
     *names.CONTACT_WRENCHES,
+    names.JOINT_STATES,
+    names.JOINT_HEALTH,
+    names.FAULT_INJECTION,
 )
+JOINT_STATE_TOPICS = (names.JOINT_COMMANDS, names.JOINT_STATES)
 LATCHED_TOPICS = (names.ATTITUDE_REFERENCE, names.ATTITUDE_REFERENCE_POSE, names.GAIT_PHASE)
 BAD_NUMBERS = (math.nan, math.inf, -math.inf, 1e300, -1e300, 1.7e308)
 BAD_STRINGS = ("", "garbage", "world\x00", "base ", "\u00e9\u00e9", "LANDEDX", "x" * 300)
@@ -91,17 +103,33 @@ def garbage_message(topic: str, kind: str, now_ns: int, rng: np.random.Generator
     if topic == names.GAIT_PHASE:
         msg.data = str(rng.choice(BAD_STRINGS))
         return msg
+    if topic == names.FAULT_INJECTION:  # a joint that is none, or a fault that is none
+        if rng.random() < 0.5:
+            msg.key, msg.value = str(rng.choice(BAD_STRINGS)), "locked"
+        else:
+            msg.key = str(rng.choice(names.JOINT_NAMES))
+            msg.value = str(rng.choice(BAD_STRINGS))
+        return msg
+    if topic == names.JOINT_HEALTH:
+        msg.status = [_garbage_health_status(rng)]
+        if rng.random() < 0.1:
+            msg.status = [] if rng.random() < 0.5 else [msg.status[0], msg.status[0]]
+        msg.header.frame_id = names.BASE_FRAME
+        _set_stamp(msg, now_ns)
+        if kind == "stamp_zero":
+            _set_stamp(msg, 0)
+        return msg
     # plausible contents first, then one thing wrong
     for owner, name, shape in _float_fields(msg):
         if shape == "scalar":
             setattr(owner, name, float(rng.uniform(-1.0, 1.0)))
-    if topic == names.JOINT_COMMANDS:
+    if topic in JOINT_STATE_TOPICS:
         msg.name = list(names.JOINT_NAMES)
         msg.position = [0.1] * names.N_JOINTS
         msg.velocity = [0.0] * names.N_JOINTS
     frame = names.WORLD_FRAME if topic in (names.ODOM, names.JUMP_COMMAND) else names.BASE_FRAME
-    if topic == names.JOINT_COMMANDS:
-        frame = ""  # as the allocator sends them
+    if topic in JOINT_STATE_TOPICS:
+        frame = ""  # as the allocator and the simulator send them
     msg.header.frame_id = frame
     _set_stamp(msg, now_ns)
     if kind == "stamp_zero":
@@ -114,14 +142,14 @@ def garbage_message(topic: str, kind: str, now_ns: int, rng: np.random.Generator
         msg.header.stamp.sec = int(
             rng.choice([INT32_MAX, (now_ns + FAR_AHEAD_NS) // 1_000_000_000])
         )
-    elif kind == "frame" and topic == names.JOINT_COMMANDS:  # its strings are the names
+    elif kind == "frame" and topic in JOINT_STATE_TOPICS:  # its strings are the names
         joint_names = list(msg.name)
         joint_names[int(rng.integers(len(joint_names)))] = str(rng.choice(BAD_STRINGS))
         msg.name = joint_names
     elif kind == "frame":
         msg.header.frame_id = str(rng.choice(BAD_STRINGS))
     elif kind == "size":
-        if topic == names.JOINT_COMMANDS:
+        if topic in JOINT_STATE_TOPICS:
             size = int(rng.integers(0, 3 * names.N_JOINTS))
             msg.position = [0.0] * size
             msg.name = [str(rng.choice(BAD_STRINGS))] * int(rng.integers(0, 30))
@@ -138,6 +166,33 @@ def garbage_message(topic: str, kind: str, now_ns: int, rng: np.random.Generator
             values[int(rng.integers(len(values)))] = bad
             setattr(owner, name, values)
     return msg
+
+
+def _garbage_health_status(rng: np.random.Generator) -> DiagnosticStatus:
+    """A joint-health status the MPC must refuse: a bound NaN, infinite, missing, not
+    positive or not below its maximum, or an unknown joint."""
+    values = {"hemi_a_y_pos_knee": "stuck"}
+    for axis in "xyz":
+        values[f"radius_min_{axis}_m"] = "0.1"
+        values[f"radius_max_{axis}_m"] = "0.4"
+    axis = str(rng.choice(list("xyz")))
+    wrong = int(rng.integers(5))
+    if wrong == 0:
+        values[f"radius_min_{axis}_m"] = str(rng.choice(["nan", "inf", "-inf", "garbage"]))
+    elif wrong == 1:
+        values.pop(f"radius_max_{axis}_m")
+    elif wrong == 2:
+        values[f"radius_min_{axis}_m"] = str(rng.choice(["0.0", "-0.2"]))
+    elif wrong == 3:
+        values[f"radius_min_{axis}_m"] = "0.5"  # above its maximum
+    else:
+        values[str(rng.choice(BAD_STRINGS))] = "stuck"
+    return DiagnosticStatus(
+        level=DiagnosticStatus.ERROR,
+        name="garbage: joint health",
+        message="garbage",
+        values=[KeyValue(key=k, value=v) for k, v in values.items()],
+    )
 
 
 class GarbageNode(Node):
@@ -204,6 +259,11 @@ class WatchNode(Node):
         bad = non_finite_fields(msg)
         if bad:
             self._watch.non_finite.append(f"{topic}: {', '.join(bad)}")
+        if topic == names.JOINT_HEALTH:  # its numbers are strings: read as the MPC does
+            try:
+                joint_health_from_msg(msg)
+            except MessageValidationError as exc:
+                self._watch.non_finite.append(f"{topic}: {exc}")
         if topic == names.IMU:
             t_ns = stamp_from_msg(msg.header.stamp)
             self._watch.now_ns = max(self._watch.now_ns, t_ns)

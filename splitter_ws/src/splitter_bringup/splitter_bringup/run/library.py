@@ -112,6 +112,7 @@ def controller_config(
         recovery_momentum_ratio_max=(
             math.inf if c.recovery_momentum_ratio_max is None else c.recovery_momentum_ratio_max
         ),
+        fault_effort_scale=c.fault_effort_scale,
     )
 
 

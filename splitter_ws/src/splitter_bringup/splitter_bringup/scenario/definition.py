@@ -98,6 +98,8 @@ class ControllerSpec:
     recovery_spin_rad_s: float = 0.0
     # [-] recovery only for a tumble with |H| / I_e,max < this * |w_ref| (None: any)
     recovery_momentum_ratio_max: float | None = None
+    # [-] after a fault, the effort weights R times this (ControllerConfig)
+    fault_effort_scale: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -437,6 +439,7 @@ CONTROLLER_FIELDS = (
     "weights_step_s",
     "recovery_spin_rad_s",
     "recovery_momentum_ratio_max",
+    "fault_effort_scale",
 )
 
 
@@ -550,7 +553,13 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
             if ctrl.get("recovery_momentum_ratio_max") is None
             else _positive(ctrl, "recovery_momentum_ratio_max")
         ),
+        fault_effort_scale=_positive(ctrl, "fault_effort_scale", 0.1),
     )
+    if not 1.0e-3 <= controller.fault_effort_scale <= 1.0:
+        raise ScenarioError(
+            f"controller.fault_effort_scale: must be in [0.001, 1], got "
+            f"{controller.fault_effort_scale}"
+        )
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")
     if controller.integrator not in INTEGRATORS:

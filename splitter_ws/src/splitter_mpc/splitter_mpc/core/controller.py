@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -123,7 +123,22 @@ class ControllerConfig:
         live=True,
     )
 
+    # After a fault (radius bounds from the allocator's /splitter/joint_health) the
+    # effort weights R are scaled by this: with a limb pair held the residual nutation
+    # is damped at the edge of a narrower reachable set, and the paper's R (tuned with
+    # every joint working) leaves it settling past 20 s (README "A limb or the reel
+    # fails"). Healthy flights never see it.
+    fault_effort_scale: float = parameter_field(
+        0.1,
+        "after a fault, the effort weights R are multiplied by this [-] (1: unchanged)",
+        bounds=(1.0e-3, 1.0),
+        live=True,
+    )
+
     def __post_init__(self) -> None:
+        scale = self.fault_effort_scale
+        if not (isinstance(scale, int | float) and 1.0e-3 <= scale <= 1.0):
+            raise ValueError(f"fault_effort_scale must be in [0.001, 1], got {scale!r}")
         for name in ("replan_period_s", "control_period_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -231,6 +246,7 @@ class MorphingController(Closable):
         self._last_setpoint: NDArray[np.float64] | None = None
         # (stamp, r_min, r_max) radius bounds a fault left, used from the ticks after them
         self._pending_bounds: list[tuple] = []
+        self._fault_bounds = False  # planning within bounds a fault left
         self._stance_limbs_m: NDArray[np.float64] | None = None  # [m] r_y, r_z of the legs
         self._stance_radius_x_m: float | None = None  # [m] the tether held in stance shape
         self._recovering = False
@@ -262,6 +278,14 @@ class MorphingController(Closable):
         """Weights for the following solves (the built problem is reused)."""
         self.weights = weights
 
+    def planning_weights(self) -> MpcWeights:
+        """The weights of the next solve: :attr:`weights`, their R scaled by
+        ``fault_effort_scale`` while planning within bounds a fault left."""
+        scale = self.config.fault_effort_scale
+        if not self._fault_bounds or scale == 1.0:
+            return self.weights
+        return replace(self.weights, r=tuple(float(r) * scale for r in self.weights.r))
+
     def set_mass_model(
         self, model: RobotModel, hemi_inertia_kg_m2: ArrayLike = (0.0, 0.0, 0.0)
     ) -> None:
@@ -282,6 +306,7 @@ class MorphingController(Closable):
         bounds = checked_radius_bounds(radius_min_m, radius_max_m) or (None, None)
         if stamp_ns is None:
             self.mpc.set_radius_bounds(*bounds)
+            self._fault_bounds = bounds[0] is not None
             self._pending_bounds.clear()
         else:
             self._pending_bounds.append((int(stamp_ns), *bounds))
@@ -298,6 +323,7 @@ class MorphingController(Closable):
         if due:
             _, low, high = max(due, key=lambda b: b[0])
             self.mpc.set_radius_bounds(low, high)
+            self._fault_bounds = low is not None
             self._pending_bounds = [b for b in self._pending_bounds if b[0] > cutoff]
 
     def inject_solver_failures(self, count: int = 1) -> None:
@@ -494,7 +520,7 @@ class MorphingController(Closable):
                 state,
                 self.spin_reference(),
                 self.attitude_references(t_ns),
-                self.weights,
+                self.planning_weights(),
                 nominal_inertia_kg_m2=self._nominal,
             )
             plan = self.mpc.solve(request)
