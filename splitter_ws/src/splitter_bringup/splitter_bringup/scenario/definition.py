@@ -99,7 +99,7 @@ class ControllerSpec:
     # [-] recovery only for a tumble with |H| / I_e,max < this * |w_ref| (None: any)
     recovery_momentum_ratio_max: float | None = None
     # [-] after a fault, the effort weights R times this (ControllerConfig)
-    fault_effort_scale: float = 0.1
+    fault_effort_scale: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -553,7 +553,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
             if ctrl.get("recovery_momentum_ratio_max") is None
             else _positive(ctrl, "recovery_momentum_ratio_max")
         ),
-        fault_effort_scale=_positive(ctrl, "fault_effort_scale", 0.1),
+        fault_effort_scale=_positive(ctrl, "fault_effort_scale", 0.01),
     )
     if not 1.0e-3 <= controller.fault_effort_scale <= 1.0:
         raise ScenarioError(
