@@ -219,7 +219,12 @@ def test_a_stuck_knee_in_the_joint_states_is_found_and_published(ros_context) ->
     other joint follows the commands; a NaN joint state and one stamped behind in between
     are refused. The allocator finds the knee stuck once it is asked to move and
     publishes /splitter/joint_health with the knee and the radius bounds that remain."""
-    node, probe, executor = _graph(ros_context, initialize_from_measured_inertia=False)
+    node, probe, executor = _graph(  # the probe's joints: the last command, one tick late
+        ros_context,
+        initialize_from_measured_inertia=False,
+        servo_latency_s=TICK_NS * 1e-9,
+        command_extrapolation_s=0.0,
+    )
     health: list[DiagnosticArray] = []
     probe.create_subscription(
         DiagnosticArray, names.JOINT_HEALTH, health.append, qos_for(names.JOINT_HEALTH)

@@ -1,9 +1,10 @@
 """Fault detection from joint states against commands (:mod:`splitter_ik.core.joint_health`).
 
 A synthetic servo stands in for the joints: the commands reach it after a latency,
-through a first-order lag, then a rate limit: the robot errors the campaigns fly
-(20 ms, 50 ms). Healthy, it is never flagged, however its commands move; locked, it
-is found once commanded away; limp, once it leaves its commands.
+through the robot's first-order lag (``CommandLag``), then a rate limit: the robot
+errors the campaigns fly (20 ms, 50 ms), which the detector is told. Healthy, it is
+never flagged, however its commands move; locked, it is found once commanded away;
+limp, once it leaves its commands.
 """
 
 from __future__ import annotations
@@ -11,7 +12,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splitter_ik.core.joint_health import NOT_FOLLOWING, STUCK, JointHealthMonitor
+from splitter_ik.core.joint_health import (
+    NOT_FOLLOWING,
+    STUCK,
+    JointHealthConfig,
+    JointHealthMonitor,
+    ServoModel,
+)
+from splitter_model.actuators import CommandLag
 from splitter_model.joints import JOINT_INDEX, N_JOINTS, TETHER_INDEX
 
 PERIOD_NS = 10_000_000  # [ns] the control tick
@@ -19,36 +27,39 @@ STEP_NS = 5_000_000  # [ns] the simulator step
 LATENCY_NS = 20_000_000
 LAG_S = 0.05
 SPEED_MAX = 8.0  # [rad/s] servo
+# what the detector is told of the servos
+SERVO_DATASHEET = JointHealthConfig(servo_lag_s=LAG_S, servo_latency_s=LATENCY_NS * 1e-9)
 
 
 class LaggedServo:
-    """Commands after a latency, through a first-order lag and a speed limit."""
+    """Commands after a latency, through the robot's first-order lag, then a speed limit."""
 
     def __init__(self, start: np.ndarray) -> None:
         self.q = start.astype(float).copy()
-        self.lagged = start.astype(float).copy()
+        self.lag = CommandLag(LAG_S, PERIOD_NS * 1e-9)
+        self.followed: tuple[int, np.ndarray, np.ndarray] | None = None
         self.queue: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.frozen = np.zeros(N_JOINTS, dtype=bool)
         self.drift = np.zeros(N_JOINTS)  # [rad/s] of a limp joint swinging
 
     def command(self, t_ns: int, q: np.ndarray, v: np.ndarray) -> None:
-        self.queue.append((t_ns + LATENCY_NS, q.copy(), v.copy()))
+        self.queue.append((t_ns, q.copy(), v.copy()))
 
     def step(self, t_ns: int) -> None:
-        due = [c for c in self.queue if c[0] <= t_ns]
-        if due:
-            stamp, q, v = due[-1]
+        while self.queue and self.queue[0][0] + LATENCY_NS <= t_ns:
+            stamp, q, v = self.queue.pop(0)
+            self.followed = (stamp, *self.lag.apply(q, v))
+        if self.followed is not None:
+            stamp, q, v = self.followed
             target = q + v * min((t_ns - stamp) * 1e-9, 0.02)
-            alpha = 1.0 - np.exp(-STEP_NS * 1e-9 / LAG_S)
-            self.lagged += alpha * (target - self.lagged)
-        move = np.clip(self.lagged - self.q, -SPEED_MAX * 5e-3, SPEED_MAX * 5e-3)
-        self.q = np.where(self.frozen, self.q, self.q + move)
+            move = np.clip(target - self.q, -SPEED_MAX * 5e-3, SPEED_MAX * 5e-3)
+            self.q = np.where(self.frozen, self.q, self.q + move)
         self.q += self.drift * STEP_NS * 1e-9
 
 
 def _fly(commands, seconds: float, fault=None, monitor=None):
     """Closed loop of commands (a function of t [s] -> (q, v)) and the servo; the detections."""
-    monitor = monitor or JointHealthMonitor()
+    monitor = monitor or JointHealthMonitor(SERVO_DATASHEET)
     q0, _ = commands(0.0)
     servo = LaggedServo(q0)
     found = []
@@ -161,3 +172,105 @@ def test_detection_off_reports_nothing() -> None:
 def test_non_finite_joint_states_are_refused() -> None:
     with pytest.raises(ValueError, match="finite"):
         JointHealthMonitor().on_measurement(0, np.full(N_JOINTS, np.nan))
+
+
+def _fly_exact(commands, seconds: float, fault=None):
+    """As :func:`_fly`, with servos that follow their commands at once (no latency, no
+    lag: the nominal robot), which the detector is told (its defaults)."""
+    global LATENCY_NS, LAG_S
+    saved = LATENCY_NS, LAG_S
+    LATENCY_NS, LAG_S = 0, 0.0
+    try:
+        return _fly(commands, seconds, fault, JointHealthMonitor())
+    finally:
+        LATENCY_NS, LAG_S = saved
+
+
+def _sweep(t: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every joint still but one knee, sweeping at 3 rad/s from 0.5 s to 1.0 s."""
+    q, v = _still(t)
+    knee = JOINT_INDEX["hemi_b_z_pos_knee"]
+    if 0.5 <= t < 1.0:
+        q[knee] += 3.0 * (t - 0.5)
+        v[knee] = 3.0
+    elif t >= 1.0:
+        q[knee] += 1.5
+    return q, v
+
+
+def test_exact_servos_following_a_fast_sweep_are_never_flagged() -> None:
+    found, _ = _fly_exact(_sweep, 2.0)
+    assert found == []
+
+
+def test_a_limp_joint_trailing_its_moving_command_is_found_at_once() -> None:
+    """Limp while sweeping: its momentum carries it along, slower than its command (a
+    servo with lag would trail the same way, so only a detector that knows the servos
+    can tell)."""
+    knee = JOINT_INDEX["hemi_b_z_pos_knee"]
+
+    def limp(t_ns: int, servo: LaggedServo) -> None:
+        if t_ns >= 600_000_000:
+            servo.frozen[knee] = True
+            servo.drift[knee] = 2.0  # [rad/s] coasting, against the 3 rad/s asked
+
+    found, _ = _fly_exact(_sweep, 1.2, limp)
+    assert [(d.joint, d.symptom) for d in found] == [(knee, NOT_FOLLOWING)]
+    assert found[0].t_ns * 1e-9 - 0.6 <= 0.05  # 1 rad/s off: 10 mrad in 10 ms
+
+
+def test_a_joint_locked_while_moving_is_stuck_not_limp() -> None:
+    knee = JOINT_INDEX["hemi_b_z_pos_knee"]
+
+    def lock(t_ns: int, servo: LaggedServo) -> None:
+        servo.frozen[knee] = t_ns >= 700_000_000
+
+    found, monitor = _fly_exact(_sweep, 1.2, lock)
+    assert [(d.joint, d.symptom) for d in found] == [(knee, STUCK)]
+    assert found[0].t_ns * 1e-9 - 0.7 <= 0.2
+    assert monitor.symptoms == {knee: STUCK}
+
+
+def test_a_creeping_limp_joint_is_found_within_the_bound() -> None:
+    """Limp at rest, then creeping at 10 mrad/s away from its still command: too fast to
+    look stuck, far too slow to leave its commands' envelope (0.02 rad) in time."""
+    knee = JOINT_INDEX["hemi_a_y_neg_knee"]
+
+    def creep(t_ns: int, servo: LaggedServo) -> None:
+        if t_ns >= 500_000_000:
+            servo.frozen[knee] = True
+            servo.drift[knee] = 0.01  # [rad/s]
+
+    found, _ = _fly_exact(_still, 3.0, creep)
+    assert [(d.joint, d.symptom) for d in found] == [(knee, NOT_FOLLOWING)]
+    asked = 0.5 + JointHealthConfig().stuck_error_rad / 0.01  # its error passes "asked"
+    assert found[0].t_ns * 1e-9 - asked <= 0.2
+
+
+def test_a_fault_before_a_window_of_commands_is_found() -> None:
+    """Limp from the first tick on: the servo held where it was first measured."""
+    pitch = JOINT_INDEX["hemi_b_y_neg_hip_pitch"]
+
+    def limp(t_ns: int, servo: LaggedServo) -> None:
+        if t_ns >= 20_000_000:
+            servo.frozen[pitch] = True
+            servo.drift[pitch] = -1.0  # [rad/s]
+
+    found, _ = _fly(_still, 0.3, limp)
+    assert [d.joint for d in found] == [pitch]
+    assert found[0].t_ns * 1e-9 - 0.02 <= 0.1
+
+
+def test_the_servo_model_is_the_robots_lag_after_its_latency() -> None:
+    """ServoModel against CommandLag: a command reaches it after the latency, through the
+    lag; between two commands it holds the target and the one before."""
+    lag = CommandLag(LAG_S, PERIOD_NS * 1e-9)
+    model = ServoModel(LAG_S, LATENCY_NS * 1e-9)
+    rng = np.random.default_rng(3)
+    start = np.zeros(N_JOINTS)
+    for k in range(30):
+        q, v = rng.normal(size=N_JOINTS), np.zeros(N_JOINTS)
+        model.on_command(k * PERIOD_NS, q, v)
+        expected = lag.apply(q, v)[0]
+        now, _ = model.targets(k * PERIOD_NS + LATENCY_NS, 0.02, start)
+        np.testing.assert_allclose(now, expected, atol=1e-12)

@@ -17,9 +17,10 @@ motion of that joint after the fault, and the joints found faulty that were not
 (false detections). The first commanded motion: the start of the first stretch of
 the detector's ``stuck_window_s`` (60 ms) over which the joint's command stays farther
 than its "stuck" threshold from where the joint is (or, for a limp joint, the joint
-has moved by as much by itself). A joint locked while held still shows nothing until
-then; a command that only grazes the threshold (a reel locked at its end, held there
-within a millimetre) does not ask it to move.
+has moved by as much by itself: its error to its command changed by as much; a limp
+joint that happens to move with its command shows nothing). A joint locked while held
+still shows nothing until then; a command that only grazes the threshold (a reel
+locked at its end, held there within a millimetre) does not ask it to move.
 
 ROS-free.
 """
@@ -106,8 +107,9 @@ def fault_detection(
     if after.size:
         k0 = after[0]
         asked = np.abs(command[k0:] - q[k0:]) > threshold
-        if fault.kind == LIMP:
-            asked |= np.abs(q[k0:] - q[k0]) > threshold
+        if fault.kind == LIMP:  # moved by itself: its error changed without its command
+            error = command[k0:] - q[k0:]
+            asked |= np.abs(error - error[0]) > threshold
         span = max(1, int(np.sum(t[k0:] <= t[k0] + config.stuck_window_s)))  # samples
         sustained = np.convolve(asked.astype(int), np.ones(span, dtype=int), "valid") == span
         moving = np.flatnonzero(sustained)

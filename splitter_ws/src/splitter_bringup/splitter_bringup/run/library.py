@@ -39,8 +39,13 @@ import numpy as np
 
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.scenario.definition import Scenario
-from splitter_bringup.scenario.graph_config import flies_on_estimates, gait_parameters
+from splitter_bringup.scenario.graph_config import (
+    flies_on_estimates,
+    gait_parameters,
+    joint_health_config,
+)
 from splitter_bringup.scenario.simulation import simulator_tick
+from splitter_ik.core.allocator import Allocation
 from splitter_ik.core.allocator_tick import AllocatorTick, AllocatorTickSettings
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.model import RobotModel
@@ -53,6 +58,7 @@ from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
 from splitter_mpc.core.mpc_tick import MpcTick, MpcTickSettings
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
+from splitter_sim.core.actuators import COMMAND_EXTRAPOLATION_S
 from splitter_sim.core.simulator import Simulator
 
 _LOG = logging.getLogger(__name__)
@@ -142,7 +148,8 @@ def run_closed_loop(
     faulty joints and re-plans without them unless the scenario's ``fault_handling`` is
     false. The series records the true state, the simulator's faults (``joint_fault``,
     codes of ``splitter_model.faults``), the detections (``joint_detected``: 1 from the
-    tick a joint is found faulty) and the last joint command (``joint_command``).
+    tick a joint is found faulty) and where the last joint command asks the joints to be
+    (``joint_command``, :func:`commanded_position`).
     """
     model = model or RobotModel()
     estimated = flies_on_estimates(scenario) if estimator is None else bool(estimator)
@@ -164,7 +171,9 @@ def run_closed_loop(
     mpc_tick = MpcTick(controller, MpcTickSettings(estimated_masses=estimated))
     # starts, as its node, from the first measured inertia
     allocator = AllocatorTick(
-        model, settings=AllocatorTickSettings(fault_handling=scenario.fault_handling)
+        model,
+        settings=AllocatorTickSettings(fault_handling=scenario.fault_handling),
+        health=joint_health_config(scenario),
     )
     estimation = scenario.estimator if estimation is None else estimation
     flight = EstimatorTick(model, estimation, CONTROL_PERIOD_NS) if estimated else None
@@ -256,7 +265,9 @@ def run_closed_loop(
         rec["joint_fault"].append(state.joint_fault)
         rec["joint_detected"].append(_detected(allocator.health.faulty_joints))
         last = allocator.last_allocation
-        rec["joint_command"].append(state.joint_position if last is None else last.joint_position)
+        rec["joint_command"].append(
+            state.joint_position if last is None else commanded_position(last, t)
+        )
         phases.append(phase_name)
         if step < n_steps:
             sim.step()
@@ -272,6 +283,14 @@ def run_closed_loop(
     if estimates:
         series.extras.update(estimate_extras(estimates))
     return series
+
+
+def commanded_position(allocation: Allocation, t_ns: int) -> np.ndarray:
+    """Where ``allocation``'s command asks the joints to be at ``t_ns`` [rad, m]: its
+    position followed at its velocity for at most ``COMMAND_EXTRAPOLATION_S``, as the
+    servos do (between two control ticks a moving joint is not behind its command)."""
+    ahead_s = min(max(0.0, (t_ns - allocation.t_ns) / NS_PER_S), COMMAND_EXTRAPOLATION_S)
+    return allocation.joint_position + allocation.joint_velocity * ahead_s
 
 
 def estimate_extras(estimates: list[FlightEstimate]) -> dict[str, np.ndarray]:
@@ -376,7 +395,7 @@ def _series(rec: dict[str, list], phases: list[str], gravity: float) -> RunSerie
             "mpc_deadline_misses": a["deadline_misses"],
             "joint_fault": a["joint_fault"],  # (n, 25) simulator's truth: 0 ok, 1 locked, 2 limp
             "joint_detected": a["joint_detected"],  # (n, 25) 1: the allocator found it faulty
-            "joint_command": a["joint_command"],  # (n, 25) the last joint command sent
+            "joint_command": a["joint_command"],  # (n, 25) where the last command asks them
         },
     )
 

@@ -14,6 +14,7 @@ from typing import Any
 
 from splitter_bag.core.node_parameters import parameter_file_text
 from splitter_bringup.scenario.definition import Scenario
+from splitter_ik.core.joint_health import JointHealthConfig
 from splitter_model.faults import fault_parameters
 from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.gait import jump_plan_parameters
@@ -209,12 +210,33 @@ def allocator_parameters(scenario: Scenario, real_time: bool = False) -> dict:
     measures (the simulator follows them at their stamps); in lockstep each tick is
     answered with its own stamp.
     """
+    health = joint_health_config(scenario, real_time)
     return {
         "use_sim_time": True,
         "initial_radii_m": _floats(scenario.initial_radii_m),
         "command_lead": bool(real_time),
         "fault_handling": bool(scenario.fault_handling),
+        **{name: getattr(health, name) for name in HEALTH_FROM_SCENARIO},
     }
+
+
+# the fault detector's parameters a scenario sets (the rest keep the node's defaults)
+HEALTH_FROM_SCENARIO = ("servo_lag_s", "servo_latency_s", "residual_margin_rad")
+RESIDUAL_MARGIN_EXACT_RAD = 0.01  # [rad] servos without lag or latency, in lockstep
+RESIDUAL_MARGIN_LAGGED_RAD = 0.03  # [rad] servos with lag or latency, or in real time
+
+
+def joint_health_config(scenario: Scenario, real_time: bool = False) -> JointHealthConfig:
+    """The fault detector of a scenario's allocator: told the servos' lag and latency
+    (the robot errors' datasheet, as the controller is), with the residual margin their
+    prediction allows (``JointHealthConfig.residual_margin_rad``)."""
+    errors = scenario.robot_errors
+    exact = errors.actuator_lag_s == 0.0 and errors.command_latency_s == 0.0 and not real_time
+    return JointHealthConfig(
+        servo_lag_s=float(errors.actuator_lag_s),
+        servo_latency_s=float(errors.command_latency_s),
+        residual_margin_rad=RESIDUAL_MARGIN_EXACT_RAD if exact else RESIDUAL_MARGIN_LAGGED_RAD,
+    )
 
 
 def recorder_parameters(bag_dir: Path, topics: tuple[str, ...] = RECORDED_TOPICS) -> dict:

@@ -14,9 +14,15 @@ and the commands the allocator sent:
   window than at its start. A working servo closes any such error at once, so it
   never shows this (a joint that reached its range end ahead of its command waits
   there while the command comes to it: the error shrinks);
+* **drifting** (a limp joint creeping): the command has stood still (within
+  ``still``) since some time between ``envelope_window_s`` and ``stuck_window_s`` ago,
+  and the joint is now farther than ``stuck_error`` from it and farther by more than
+  ``still`` than it was then. A servo, whatever its lag, only closes the error to a
+  command that stands still. Its symptom is "not following";
 * **not following** (a limp joint swinging, a runaway): the joint is farther than
   ``envelope_margin`` outside the range of the commands of the last
-  ``envelope_window_s``.
+  ``envelope_window_s`` (before the first command, the servo holds where the joint
+  was first measured: that position is in the range).
 
 A joint found stuck that later moves by more than ``envelope_margin`` from where
 it was found (its commands then hold it there) is limp after all: its symptom
@@ -32,6 +38,7 @@ ROS-free, numpy only.
 from __future__ import annotations
 
 import bisect
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -100,6 +107,36 @@ class JointHealthConfig:
         bounds=(1e-4, 1.0),
     )
 
+    # The servos' lag and latency (their datasheet: Scenario.robot_errors sets them, as it
+    # sets the controller's); 0: servos that follow their commands at once.
+    servo_lag_s: float = parameter_field(
+        0.0, "the servos' first-order lag (time constant) [s]", bounds=(0.0, 1.0)
+    )
+    servo_latency_s: float = parameter_field(
+        0.0, "the servos' command latency [s]", bounds=(0.0, 0.5)
+    )
+    servo_tolerance: float = parameter_field(
+        0.25,
+        "the servos' lag and latency are known within this fraction [-]",
+        bounds=(0.0, 0.9),
+    )
+    # Healthy limb joints stay within 0.9 mrad of the servo models without lag or latency
+    # (60 nominal tumbles: the servos' acceleration limit at velocity steps), within 8.7
+    # mrad with 50 ms lag and 20 ms latency (30 tumbles with robot errors: the servos trail
+    # their lagged targets at their acceleration limit); graph_config sets 0.03 then.
+    residual_margin_rad: float = parameter_field(
+        0.01,
+        "a moving limb joint this far outside where the servo models are does not "
+        "follow its commands [rad]",
+        bounds=(1e-4, 1.0),
+    )
+    residual_margin_m: float = parameter_field(
+        0.05,
+        "a moving tether this far outside where the servo models are does not follow "
+        "its commands [m]",
+        bounds=(1e-4, 1.0),
+    )
+
     def __post_init__(self) -> None:
         for still, asked in (("still_rad", "stuck_error_rad"), ("still_m", "stuck_error_m")):
             if not getattr(self, still) < getattr(self, asked):
@@ -129,6 +166,68 @@ class Detection:
         return JOINT_NAMES[self.joint]
 
 
+class ServoModel:
+    """Where a servo with a command latency and a first-order lag would be.
+
+    As the simulated robot's (:class:`splitter_model.actuators.CommandLag`, the
+    latency of ``splitter_sim.core.tick``): each command reaches the servo
+    ``latency_s`` after its stamp, through the lag on its position and velocity
+    (the first passes through), and is followed at its velocity from its stamp for up
+    to the extrapolation time.
+    """
+
+    def __init__(self, lag_s: float, latency_s: float) -> None:
+        self.lag_s = float(lag_s)  # [s]
+        self.latency_ns = round(latency_s * 1e9)  # [ns]
+        self._pending: deque[tuple[int, NDArray[np.float64], NDArray[np.float64]]] = deque()
+        self._followed: tuple[int, NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._before: tuple[int, NDArray[np.float64], NDArray[np.float64]] | None = None
+
+    def on_command(
+        self, t_ns: int, position: NDArray[np.float64], velocity: NDArray[np.float64]
+    ) -> None:
+        """A command stamped ``t_ns``: position and velocity (25 each)."""
+        pending = self._pending
+        while pending and pending[-1][0] >= t_ns:  # a repeated stamp replaces
+            pending.pop()
+        pending.append((t_ns, position, velocity))
+
+    def targets(
+        self, t_ns: int, extrapolation_s: float, start: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The servo's target at ``t_ns`` and the one before it (25 each): a servo that
+        follows its targets at a limited acceleration is between the two (``start``:
+        where it holds before any command)."""
+        pending = self._pending
+        while pending and pending[0][0] + self.latency_ns <= t_ns:
+            stamp, q, v = pending.popleft()
+            last = self._followed
+            self._before = last
+            if last is None or self.lag_s <= 0.0:
+                self._followed = (stamp, q, v)
+            else:
+                gain = -math.expm1(-max(stamp - last[0], 0) * 1e-9 / self.lag_s)
+                self._followed = (
+                    stamp,
+                    last[1] + gain * (q - last[1]),
+                    last[2] + gain * (v - last[2]),
+                )
+        now = _followed_at(self._followed, t_ns, extrapolation_s, start)
+        return now, _followed_at(self._before, t_ns, extrapolation_s, now)
+
+
+def _followed_at(
+    followed: tuple[int, NDArray[np.float64], NDArray[np.float64]] | None,
+    t_ns: int,
+    extrapolation_s: float,
+    default: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    if followed is None:
+        return default
+    stamp, q, v = followed
+    return q + v * min(max(t_ns - stamp, 0) * 1e-9, extrapolation_s)
+
+
 class JointHealthMonitor:
     """Watches the commands sent and the joint states measured; reports faulty joints.
 
@@ -145,11 +244,26 @@ class JointHealthMonitor:
         self._still = c.per_joint(c.still_rad, c.still_m)
         self._stuck_error = c.per_joint(c.stuck_error_rad, c.stuck_error_m)
         self._margin = c.per_joint(c.envelope_margin_rad, c.envelope_margin_m)
+        self._residual_margin = c.per_joint(c.residual_margin_rad, c.residual_margin_m)
+        # the servos as configured, at the ends of their tolerance
+        self._servos = [
+            ServoModel(lag_s, latency_s)
+            for lag_s, latency_s in sorted(
+                {
+                    (c.servo_lag_s * lag, c.servo_latency_s * latency)
+                    for lag in (1.0 - c.servo_tolerance, 1.0 + c.servo_tolerance)
+                    for latency in (1.0 - c.servo_tolerance, 1.0 + c.servo_tolerance)
+                }
+            )
+        ]
         # (stamp, position, velocity) of the commands sent
         self._commands: deque[tuple[int, NDArray[np.float64], NDArray[np.float64]]] = deque()
         self._measured: deque[tuple[int, NDArray[np.float64]]] = deque()
         self._detections: dict[int, Detection] = {}
         self._found_at: dict[int, float] = {}  # where each stuck joint was found
+        self._off_at = np.full(N_JOINTS, np.nan)  # where each joint went off the servo models
+        # where the joints were first measured: a servo holds it until its first command
+        self._initial: NDArray[np.float64] | None = None
 
     @property
     def detections(self) -> tuple[Detection, ...]:
@@ -174,6 +288,8 @@ class JointHealthMonitor:
         while commands and commands[-1][0] >= t_ns:  # a repeated stamp replaces
             commands.pop()
         commands.append((int(t_ns), q.copy(), v.reshape(N_JOINTS).copy()))
+        for servo in self._servos if self.enabled else ():
+            servo.on_command(int(t_ns), commands[-1][1], commands[-1][2])
         horizon = int(t_ns) - self._keep_ns()
         while len(commands) > 1 and commands[1][0] <= horizon:
             commands.popleft()
@@ -190,6 +306,8 @@ class JointHealthMonitor:
             raise ValueError("joint positions must be finite")
         measured = self._measured
         measured.append((int(t_ns), q.copy()))
+        if self._initial is None:
+            self._initial = q.copy()
         horizon = int(t_ns) - self._keep_ns()
         while len(measured) > 1 and measured[1][0] <= horizon:
             measured.popleft()
@@ -200,7 +318,11 @@ class JointHealthMonitor:
         stuck = self._stuck(int(t_ns), q)
         found |= stuck
         symptom[stuck] = STUCK
-        wandering = self._outside_commands(int(t_ns), q) & ~found
+        wandering = (
+            self._outside_commands(int(t_ns), q)
+            | self._off_model(int(t_ns), q)
+            | self._drifting(int(t_ns), q)
+        ) & ~found
         found |= wandering
         symptom[wandering] = NOT_FOLLOWING
         new = []
@@ -253,6 +375,69 @@ class JointHealthMonitor:
         # ahead of it) does not ask it to move: the error must not have shrunk
         return suspects & (error >= first_error)
 
+    def _off_model(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Joints that moved where no servo of the configured lag and latency would go.
+
+        A joint is off the servo models (:class:`ServoModel`, at the ends of the
+        tolerance) when it is farther than ``residual_margin`` outside their range; it
+        does not follow its commands once it has also moved by more than ``still`` since
+        it went off (a joint locked while moving stops there: the stuck test's).
+        """
+        if not self._commands:
+            return np.zeros(N_JOINTS, dtype=bool)
+        reach = self.config.command_extrapolation_s
+        predicted = np.concatenate([servo.targets(t_ns, reach, q) for servo in self._servos])
+        low, high = predicted.min(axis=0), predicted.max(axis=0)
+        off = (q < low - self._residual_margin) | (q > high + self._residual_margin)
+        went_off = off & np.isnan(self._off_at)
+        self._off_at[went_off] = q[went_off]
+        self._off_at[~off] = np.nan
+        return off & (np.abs(q - self._off_at) > self._still)
+
+    def _drifting(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Joints moving away from a command that stands still (a limp joint creeping).
+
+        For a start ``s`` between ``envelope_window_s`` and ``stuck_window_s`` ago: every
+        command in force since ``s - command_delay_s`` stayed within ``still`` of the
+        others, the joint is farther than ``stuck_error`` from it now, and farther by more
+        than ``still`` than it was at ``s``. A servo, whatever its lag, only closes the
+        error to a command that stands still.
+        """
+        c = self.config
+        none = np.zeros(N_JOINTS, dtype=bool)
+        target = self._command_at(t_ns)
+        if target is None:
+            return none
+        error_now = np.abs(target - q)
+        suspects = error_now > self._stuck_error
+        if not suspects.any():
+            return none
+        latest_start = t_ns - round(c.stuck_window_s * 1e9)
+        earliest_start = t_ns - round(c.envelope_window_s * 1e9)
+        starts = [(t, m) for t, m in self._measured if earliest_start <= t <= latest_start]
+        delay_ns = round(c.command_delay_s * 1e9)
+        reach = c.command_extrapolation_s
+        commands = self._commands
+        k = len(commands) - 1
+        low, high = target.copy(), target.copy()  # the range of the commands since s - delay
+        drifting = np.zeros(N_JOINTS, dtype=bool)
+        for s_ns, m in reversed(starts):
+            since = s_ns - delay_ns
+            while k >= 0 and commands[k][0] > since:
+                _, cq, cv = commands[k]
+                low = np.minimum(low, np.minimum(cq, cq + cv * reach))
+                high = np.maximum(high, np.maximum(cq, cq + cv * reach))
+                k -= 1
+            before = self._command_at(since)
+            if before is None:
+                break
+            low, high = np.minimum(low, before), np.maximum(high, before)
+            still_command = (high - low) <= self._still
+            if not (still_command & suspects).any():
+                break  # older starts only widen the range
+            drifting |= still_command & (error_now > np.abs(target - m) + self._still)
+        return suspects & drifting
+
     def _outside_commands(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         c = self.config
         start = t_ns - round(c.envelope_window_s * 1e9)
@@ -262,8 +447,10 @@ class JointHealthMonitor:
         before = self._command_at(start)
         if before is not None:
             window.append(before)
-        if not window or self._commands[0][0] > start:
-            return np.zeros(N_JOINTS, dtype=bool)  # less than a window of commands yet
+        elif self._initial is not None:  # the window opens before the first command
+            window.append(self._initial)
+        if not window:
+            return np.zeros(N_JOINTS, dtype=bool)
         stacked = np.stack(window)
         low, high = stacked.min(axis=0), stacked.max(axis=0)
         return (q < low - self._margin) | (q > high + self._margin)
