@@ -223,7 +223,8 @@ def allocator_parameters(scenario: Scenario, real_time: bool = False) -> dict:
 # the fault detector's parameters a scenario sets (the rest keep the node's defaults)
 HEALTH_FROM_SCENARIO = ("servo_lag_s", "servo_latency_s", "residual_margin_rad")
 RESIDUAL_MARGIN_EXACT_RAD = 0.01  # [rad] servos without lag or latency, in lockstep
-RESIDUAL_MARGIN_LAGGED_RAD = 0.03  # [rad] servos with lag or latency, or in real time
+RESIDUAL_MARGIN_LAGGED_RAD = 0.03  # [rad] servos with lag or latency
+RESIDUAL_MARGIN_REAL_TIME_RAD = 1.0  # [rad] real time: off
 
 
 def joint_health_config(scenario: Scenario, real_time: bool = False) -> JointHealthConfig:
@@ -231,11 +232,15 @@ def joint_health_config(scenario: Scenario, real_time: bool = False) -> JointHea
     (the robot errors' datasheet, as the controller is), with the residual margin their
     prediction allows (``JointHealthConfig.residual_margin_rad``)."""
     errors = scenario.robot_errors
-    exact = errors.actuator_lag_s == 0.0 and errors.command_latency_s == 0.0 and not real_time
+    exact = errors.actuator_lag_s == 0.0 and errors.command_latency_s == 0.0
+    if real_time:
+        margin = RESIDUAL_MARGIN_REAL_TIME_RAD
+    else:
+        margin = RESIDUAL_MARGIN_EXACT_RAD if exact else RESIDUAL_MARGIN_LAGGED_RAD
     return JointHealthConfig(
         servo_lag_s=float(errors.actuator_lag_s),
         servo_latency_s=float(errors.command_latency_s),
-        residual_margin_rad=RESIDUAL_MARGIN_EXACT_RAD if exact else RESIDUAL_MARGIN_LAGGED_RAD,
+        residual_margin_rad=margin,
     )
 
 

@@ -21,8 +21,7 @@ and the commands the allocator sent:
   command that stands still. Its symptom is "not following";
 * **not following** (a limp joint swinging, a runaway): the joint is farther than
   ``envelope_margin`` outside the range of the commands of the last
-  ``envelope_window_s`` (before the first command, the servo holds where the joint
-  was first measured: that position is in the range).
+  ``envelope_window_s`` (from a whole window of commands on).
 
 A joint found stuck that later moves by more than ``envelope_margin`` from where
 it was found (its commands then hold it there) is limp after all: its symptom
@@ -262,8 +261,6 @@ class JointHealthMonitor:
         self._detections: dict[int, Detection] = {}
         self._found_at: dict[int, float] = {}  # where each stuck joint was found
         self._off_at = np.full(N_JOINTS, np.nan)  # where each joint went off the servo models
-        # where the joints were first measured: a servo holds it until its first command
-        self._initial: NDArray[np.float64] | None = None
 
     @property
     def detections(self) -> tuple[Detection, ...]:
@@ -306,8 +303,6 @@ class JointHealthMonitor:
             raise ValueError("joint positions must be finite")
         measured = self._measured
         measured.append((int(t_ns), q.copy()))
-        if self._initial is None:
-            self._initial = q.copy()
         horizon = int(t_ns) - self._keep_ns()
         while len(measured) > 1 and measured[1][0] <= horizon:
             measured.popleft()
@@ -447,10 +442,8 @@ class JointHealthMonitor:
         before = self._command_at(start)
         if before is not None:
             window.append(before)
-        elif self._initial is not None:  # the window opens before the first command
-            window.append(self._initial)
-        if not window:
-            return np.zeros(N_JOINTS, dtype=bool)
+        if not window or self._commands[0][0] > start:
+            return np.zeros(N_JOINTS, dtype=bool)  # less than a window of commands yet
         stacked = np.stack(window)
         low, high = stacked.min(axis=0), stacked.max(axis=0)
         return (q < low - self._margin) | (q > high + self._margin)
