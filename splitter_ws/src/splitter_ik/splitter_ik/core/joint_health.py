@@ -261,6 +261,7 @@ class JointHealthMonitor:
         self._detections: dict[int, Detection] = {}
         self._found_at: dict[int, float] = {}  # where each stuck joint was found
         self._off_at = np.full(N_JOINTS, np.nan)  # where each joint went off the servo models
+        self._off_since_ns = np.zeros(N_JOINTS, dtype=np.int64)  # and when
 
     @property
     def detections(self) -> tuple[Detection, ...]:
@@ -386,8 +387,10 @@ class JointHealthMonitor:
         off = (q < low - self._residual_margin) | (q > high + self._residual_margin)
         went_off = off & np.isnan(self._off_at)
         self._off_at[went_off] = q[went_off]
+        self._off_since_ns[went_off] = t_ns
         self._off_at[~off] = np.nan
-        return off & (np.abs(q - self._off_at) > self._still)
+        lasting = t_ns - self._off_since_ns >= round(self.config.stuck_window_s * 0.5e9)
+        return off & lasting & (np.abs(q - self._off_at) > self._still)
 
     def _drifting(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Joints moving away from a command that stands still (a limp joint creeping).
