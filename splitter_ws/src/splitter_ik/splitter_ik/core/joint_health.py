@@ -261,7 +261,8 @@ class JointHealthMonitor:
         self._detections: dict[int, Detection] = {}
         self._found_at: dict[int, float] = {}  # where each stuck joint was found
         self._off_at = np.full(N_JOINTS, np.nan)  # where each joint went off the servo models
-        self._off_since_ns = np.zeros(N_JOINTS, dtype=np.int64)  # and when
+        # since when each joint has shown "not following" without a break (-1: it has not)
+        self._wandering_since_ns = np.full(N_JOINTS, -1, dtype=np.int64)
 
     @property
     def detections(self) -> tuple[Detection, ...]:
@@ -319,6 +320,12 @@ class JointHealthMonitor:
             | self._off_model(int(t_ns), q)
             | self._drifting(int(t_ns), q)
         ) & ~found
+        # for half a stuck window without a break: one stray sample (a glitch, a joint
+        # state from elsewhere) is not a fault
+        since = self._wandering_since_ns
+        since[wandering & (since < 0)] = int(t_ns)
+        since[~wandering] = -1
+        wandering &= int(t_ns) - since >= round(self.config.stuck_window_s * 0.5e9)
         found |= wandering
         symptom[wandering] = NOT_FOLLOWING
         new = []
@@ -387,10 +394,8 @@ class JointHealthMonitor:
         off = (q < low - self._residual_margin) | (q > high + self._residual_margin)
         went_off = off & np.isnan(self._off_at)
         self._off_at[went_off] = q[went_off]
-        self._off_since_ns[went_off] = t_ns
         self._off_at[~off] = np.nan
-        lasting = t_ns - self._off_since_ns >= round(self.config.stuck_window_s * 0.5e9)
-        return off & lasting & (np.abs(q - self._off_at) > self._still)
+        return off & (np.abs(q - self._off_at) > self._still)
 
     def _drifting(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Joints moving away from a command that stands still (a limp joint creeping).
