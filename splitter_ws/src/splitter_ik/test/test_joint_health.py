@@ -282,7 +282,7 @@ def test_one_stray_joint_state_is_not_a_fault() -> None:
     monitor = JointHealthMonitor()
     for k in range(100):
         t_ns = k * STEP_NS
-        q, v = _sweep(t_ns * 1e-9 + 0.4)
+        q, _ = _sweep(t_ns * 1e-9 + 0.4)
         stray = k == 60
         assert monitor.on_measurement(t_ns, np.full(N_JOINTS, 0.1) if stray else q) == []
         if t_ns % PERIOD_NS == 0:
