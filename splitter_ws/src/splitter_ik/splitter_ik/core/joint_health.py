@@ -19,9 +19,16 @@ and the commands the allocator sent:
   and the joint is now farther than ``stuck_error`` from it and farther by more than
   ``still`` than it was then. A servo, whatever its lag, only closes the error to a
   command that stands still. Its symptom is "not following";
+* **off the servo models** (a limp joint coasting along its command): the joint moved
+  farther than ``residual_margin`` outside where servos of the configured lag and
+  latency (:class:`ServoModel`, at the ends of ``servo_tolerance``) would be, and on
+  since it went out. Its symptom is "not following";
 * **not following** (a limp joint swinging, a runaway): the joint is farther than
   ``envelope_margin`` outside the range of the commands of the last
   ``envelope_window_s`` (from a whole window of commands on).
+
+The three "not following" tests count once one has held for half ``stuck_window_s``
+without a break (one stray joint state is not a fault).
 
 A joint found stuck that later moves by more than ``envelope_margin`` from where
 it was found (its commands then hold it there) is limp after all: its symptom
