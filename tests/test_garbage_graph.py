@@ -56,5 +56,8 @@ def test_garbage_on_every_input_topic_kills_no_node_and_the_flight_converges(tmp
     assert report.non_finite == ()
     for topic in (names.IMU, names.INERTIA_SETPOINT, names.JOINT_COMMANDS, names.JUMP_COMMAND):
         assert report.outputs.get(topic, 0) > 500, report.outputs
+    # no healthy joint was taken for faulty (the allocator reports health only after
+    # a detection): garbage answered no lockstep tick, so no command came late
+    assert report.outputs.get(names.JOINT_HEALTH, 0) == 0, report.outputs
     w = report.final_w_rad_s  # the paper's stabilization still happens
     assert abs(w[0]) < 0.01 and abs(w[2]) < 0.01 and abs(w[1]) / np.linalg.norm(w) > 0.99, w

@@ -36,7 +36,8 @@ rejection is a throttled warning, counted (``rejection_counts``) and reported on
 * a setpoint stamped well but with NaN / infinite values, a moment not in
   ``(0, max_setpoint_kg_m2]`` (``SETPOINT_LIMIT_FACTOR`` times the largest reachable
   moment of the model) or a frame other than ``base``: its tick is answered from
-  the last good setpoint;
+  the last good setpoint (while the MPC is the topic's one publisher; with a
+  stranger on it, the tick waits for a good setpoint);
 * an IMU with a bad quaternion, non-finite values, a body rate above
   ``MAX_BODY_RATE_RAD_S`` or a frame other than ``base``; a measured inertia that is
   not ``base``-framed moments in ``(0, 1e4]`` kg m^2: the last good one is kept.

@@ -65,6 +65,18 @@ def test_a_rejected_setpoint_is_answered_from_the_last_good() -> None:
     assert tick.status().values["setpoints_rejected"] == 2
 
 
+def test_a_rejected_setpoint_answers_no_tick_while_a_stranger_publishes_setpoints() -> None:
+    """Two setpoint publishers: a refused setpoint may be the stranger's, its tick waits
+    for the MPC's good one (which is then answered as usual)."""
+    tick = AllocatorTick(MODEL, publishers=lambda topic: 2)
+    tick.setpoint(0, TARGET)
+    out = tick.setpoint(TICK_NS, [math.nan, 1.0, 1.0])
+    assert out.rejected is not None and out.commands == () and tick.answered_ns == 0
+    (good,) = tick.setpoint(TICK_NS, MEASURED).commands
+    assert good.t_ns == TICK_NS and tick.answered_ns == TICK_NS
+    assert tick.window.rejected == 1
+
+
 def test_without_any_good_setpoint_the_commanded_radii_are_held() -> None:
     tick = AllocatorTick(MODEL, settings=AllocatorTickSettings(initial_radii_m=(2.5, 0.3, 0.3)))
     out = tick.rejected(names.INERTIA_SETPOINT, 0, "unreadable")

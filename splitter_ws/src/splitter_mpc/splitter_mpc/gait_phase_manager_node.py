@@ -24,7 +24,8 @@ every rejection is a throttled warning, counted and reported on ``/diagnostics``
   frame, unknown / missing joint names, a magnitude beyond the plausibility
   limits of :mod:`splitter_mpc.core.gait_tick`, inertia outside (0, 1e4] kg m^2)
   still answers its tick, from the last good message of that topic, so lockstep
-  never stalls on bad data.
+  never stalls on bad data; with several publishers on the topic it answers
+  nothing (it may be a stranger's: the tick waits for the real input).
 
 Subscribes only to what the robot measures: ``/splitter/imu`` (attitude, gyro,
 accelerometer), ``/splitter/hemi_{a,b}/range`` (height), ``/splitter/hemi_{a,b}/leg_force``
@@ -73,6 +74,7 @@ from splitter_msgs_py.conversions import (
     wrench_from_msg,
     wrench_to_msg,
 )
+from splitter_msgs_py.core.stamps import refusal_answers_tick
 from splitter_msgs_py.node_pattern import admitted_stamp, run_node, sim_clock_ns
 from splitter_msgs_py.node_status import publish_status
 from splitter_msgs_py.parameters import (
@@ -205,6 +207,14 @@ class GaitPhaseManagerNode(Node):
         try:
             value = self.tick.checked(topic, READERS[topic][1](msg))
         except MessageValidationError as exc:
+            if not refusal_answers_tick(self.count_publishers(topic)):
+                warn_throttled(
+                    self,
+                    topic,
+                    f"rejected {topic} stamped {t_ns * 1e-9:.3f} s: {exc}; not taken as the "
+                    "tick's input (several publishers)",
+                )
+                return
             warn_throttled(
                 self, topic, f"rejected {topic} stamped {t_ns * 1e-9:.3f} s: {exc}; using last good"
             )

@@ -38,6 +38,7 @@ from splitter_model.faults import FAULT_NAMES
 from splitter_model.model import gravity_from_name
 from splitter_msgs_py import conversions as cv
 from splitter_msgs_py import names
+from splitter_msgs_py.core.stamps import refusal_answers_tick
 from splitter_msgs_py.node_pattern import admitted_stamp, run_node
 from splitter_msgs_py.parameters import (
     READ_ONLY_NOTE,
@@ -209,8 +210,15 @@ class SimulatorNode(Node):
         try:
             apply(stamp)
         except ValueError as exc:  # MessageValidationError is a ValueError
-            warn_throttled(self, key, f"rejected {topic} at {stamp * 1e-9:.3f} s: {exc}")
-            self.tick.lockstep.arrived(topic, stamp)  # a command refused still answers its tick
+            answers = refusal_answers_tick(self.count_publishers(topic))
+            warn_throttled(
+                self,
+                key,
+                f"rejected {topic} at {stamp * 1e-9:.3f} s: {exc}"
+                + ("" if answers else "; not taken as the tick's answer (several publishers)"),
+            )
+            if answers:
+                self.tick.lockstep.arrived(topic, stamp)
         if self._started and self.tick.answers_now(stamp):
             self._advance()
 

@@ -12,10 +12,13 @@ node publishes stays finite.
 from __future__ import annotations
 
 import functools
+import time
 
 import numpy as np
 import pytest
+import rclpy
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from sensor_msgs.msg import JointState
@@ -234,6 +237,45 @@ def test_badly_stamped_commands_are_dropped(make_node, label: str, stamp_of) -> 
         assert sim._cmd_q is q and sim._jump_force is force, label
         assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now), label
         assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
+
+
+def test_a_refused_command_answers_no_tick_while_a_stranger_publishes_on_its_topic(
+    make_node, ros_context
+) -> None:
+    """Two publishers on each command topic (the graph's node and a stranger): a command
+    refused for its contents may be the stranger's, so the tick waits for a good one."""
+    with make_node() as node:
+        others = rclpy.create_node("commanders", context=ros_context)
+        try:
+            for msg_type, topic in (
+                (JointState, names.JOINT_COMMANDS),
+                (WrenchStamped, names.JUMP_COMMAND),
+            ):
+                for _ in range(2):
+                    others.create_publisher(msg_type, topic, 10)
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline and not all(
+                node.count_publishers(t) == 2 for t in (names.JOINT_COMMANDS, names.JUMP_COMMAND)
+            ):
+                time.sleep(0.01)
+            sim = node.tick.sim
+            node._publish_state()
+            _step(node, 2)
+            now = sim.time_ns
+            q, force = sim._cmd_q, sim._jump_force
+            stamp = make_stamp(("now",), now)
+            unknown = joint_state_msg(stamp, ["x"] * names.N_JOINTS, [0.0] * names.N_JOINTS)
+            node._on_joint_commands(unknown)
+            node._on_jump_command(wrench_msg(stamp, names.BASE_FRAME, (0, 0, 1), (0, 0, 0)))
+            assert sim._cmd_q is q and sim._jump_force is force
+            assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps)
+            assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
+            good = joint_positions_from_radii(MODEL, (2.7, 0.25, 0.18))
+            node._on_joint_commands(conv.joint_state_to_msg(now, good))
+            node._on_jump_command(conv.wrench_to_msg(now, (0.0, 0.0, 5.0)))
+            assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now)
+        finally:
+            others.destroy_node()
 
 
 @pytest.mark.parametrize(

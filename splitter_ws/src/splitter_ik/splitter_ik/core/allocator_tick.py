@@ -62,7 +62,7 @@ from splitter_model.redundancy import RemainingShape, remaining_shape
 from splitter_msgs_py import names
 from splitter_msgs_py.core.latency import InputLatency
 from splitter_msgs_py.core.parameter_fields import parameter_field
-from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, StampGate
+from splitter_msgs_py.core.stamps import MAX_STAMP_LEAD_NS, StampGate, refusal_answers_tick
 
 _LOG = logging.getLogger(__name__)
 # [-] a setpoint moment above this many times the largest reachable moment of the model
@@ -229,9 +229,11 @@ class AllocatorTick:
 
     def rejected(self, topic: str, t_ns: int, reason: str) -> TickOutput:
         """An input of ``t_ns`` refused for its content: counted; a setpoint's tick is
-        answered from the held setpoint, any other input changes nothing."""
+        answered from the held setpoint while the MPC is the topic's one publisher
+        (:func:`refusal_answers_tick`), any other input changes nothing."""
         self.window.rejected += 1
-        if topic != names.INERTIA_SETPOINT:
+        publishers = None if self._publishers is None else self._publishers(topic)
+        if topic != names.INERTIA_SETPOINT or not refusal_answers_tick(publishers):
             return TickOutput(rejected=reason)
         return dataclasses.replace(self._answer(t_ns, self._hold_setpoint()), rejected=reason)
 

@@ -23,6 +23,20 @@ MAX_STAMP_LEAD_NS = 1_000_000_000
 ClockNs = int | Callable[[], int | None] | None  # [ns] a node's time, or a function giving it
 
 
+def refusal_answers_tick(publishers_on_topic: int | None) -> bool:
+    """Whether an input refused for its contents (its stamp good) still answers its tick.
+
+    In lockstep a node answers each tick once every input of it arrived, and a message
+    with bad contents answers it from the last good data, so that one bad message
+    does not stall the loop. That holds while the graph's own node is the topic's
+    only publisher (``publishers_on_topic`` 0 or 1, None: not known). With another
+    publisher on the topic, a refused message may be a stranger's, stamped at a tick
+    whose real input is still on its way: answering it would step past that input,
+    which then arrives late. The tick waits for a good message (or the node's timeout).
+    """
+    return publishers_on_topic is None or publishers_on_topic <= 1
+
+
 def clock_value(clock_ns: ClockNs) -> int | None:
     """The time [ns] ``clock_ns`` gives (calling it if it is a function)."""
     return clock_ns() if callable(clock_ns) else clock_ns

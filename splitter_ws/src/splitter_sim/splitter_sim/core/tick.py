@@ -14,8 +14,10 @@ drives the same object:
   re-plan the points queued, but not the one already in effect;
 * :meth:`SimulatorTick.command_joints` / :meth:`SimulatorTick.command_jump`:
   the contents checked (joint names, ranges, speeds; the jump wrench's frame and
-  bounds) and applied; a command refused for its contents still answers its
-  lockstep tick (the simulator steps on the last good command);
+  bounds) and applied; a command refused for its contents answers its lockstep
+  tick (the simulator steps on the last good command) only while the commanding
+  node is its topic's one publisher (the node's call,
+  :func:`~splitter_msgs_py.core.stamps.refusal_answers_tick`);
 * lockstep (:class:`~splitter_sim.core.stepping.LockstepWait`): on a control tick
   the simulator steps once every command topic with a publisher answered it;
 * accounting: latency and late commands, tether slack events and the lowest
@@ -228,21 +230,20 @@ class SimulatorTick:
     ) -> None:
         """A joint command point stamped ``stamp_ns`` (admitted): applied, or queued if ahead.
 
-        ValueError when its contents are refused (it still answers its tick).
+        ValueError when its contents are refused (it answers no tick: the caller decides,
+        :func:`~splitter_msgs_py.core.stamps.refusal_answers_tick`).
         """
         now = self.time_ns
         arrives = stamp_ns + self._latency_ns  # at the servos (robot_errors.command_latency_s)
-        try:
-            if arrives > now:  # a trajectory point ahead (or delayed), followed at its time
-                validate_joint_command(self.sim.joint_limits, position, velocity, names.JOINT_NAMES)
-                self.queue.push(arrives, (position, velocity))
-            else:
-                self.late_joint_commands += stamp_ns < now
-                self.queue.drop_from(stamp_ns)  # a later plan: the points queued are void
-                self._to_servos(stamp_ns, position, velocity)
-                self.applied_joint_stamp = stamp_ns
-        finally:
-            self.lockstep.arrived(names.JOINT_COMMANDS, stamp_ns)
+        if arrives > now:  # a trajectory point ahead (or delayed), followed at its time
+            validate_joint_command(self.sim.joint_limits, position, velocity, names.JOINT_NAMES)
+            self.queue.push(arrives, (position, velocity))
+        else:
+            self.late_joint_commands += stamp_ns < now
+            self.queue.drop_from(stamp_ns)  # a later plan: the points queued are void
+            self._to_servos(stamp_ns, position, velocity)
+            self.applied_joint_stamp = stamp_ns
+        self.lockstep.arrived(names.JOINT_COMMANDS, stamp_ns)
 
     def _to_servos(self, stamp_ns: int, position: ArrayLike, velocity: ArrayLike | None) -> None:
         """A joint command point (checked first, so a refused one leaves the lag as it
@@ -264,21 +265,19 @@ class SimulatorTick:
         """A jump wrench stamped ``stamp_ns`` (admitted; world frame, torque about the COM).
 
         The torque names the pushing hemi, or both (:func:`jump_thrust`). ValueError when the
-        wrench is refused (it still answers its tick).
+        wrench is refused (it answers no tick, as :meth:`command_joints`).
         """
-        try:
-            if frame_id != names.WORLD_FRAME:
-                raise MessageValidationError(
-                    f"header.frame_id: expected '{names.WORLD_FRAME}', got {frame_id!r}"
-                )
-            check_jump_wrench(force_n, torque_nm)
-            thrust = jump_thrust(self.state(), force_n, torque_nm)
-            if thrust.per_hemi is None:
-                self.sim.command_jump_force(force_n, thrust.hemi)
-            else:
-                self.sim.command_jump_forces(*thrust.per_hemi)
-        finally:
-            self.lockstep.arrived(names.JUMP_COMMAND, stamp_ns)
+        if frame_id != names.WORLD_FRAME:
+            raise MessageValidationError(
+                f"header.frame_id: expected '{names.WORLD_FRAME}', got {frame_id!r}"
+            )
+        check_jump_wrench(force_n, torque_nm)
+        thrust = jump_thrust(self.state(), force_n, torque_nm)
+        if thrust.per_hemi is None:
+            self.sim.command_jump_force(force_n, thrust.hemi)
+        else:
+            self.sim.command_jump_forces(*thrust.per_hemi)
+        self.lockstep.arrived(names.JUMP_COMMAND, stamp_ns)
 
     def answers_now(self, stamp_ns: int) -> bool:
         """Lockstep: a command stamped ``stamp_ns`` answers the tick the simulator is at."""
