@@ -128,6 +128,28 @@ def spun_together(context: object, *nodes: Node) -> Iterator[SingleThreadedExecu
             node.destroy_node()
 
 
+@contextmanager
+def publishers_on(
+    context: object, node: Node, topics: dict[str, type], count: int = 2, timeout_s: float = 5.0
+) -> Iterator[Node]:
+    """``count`` publishers on each of ``topics`` (name: message type), from one other node,
+    seen by ``node``'s graph (a test failure after ``timeout_s`` [s]); destroyed on exit."""
+    import rclpy
+
+    others = rclpy.create_node("publishers_on", context=context)
+    try:
+        for topic, msg_type in topics.items():
+            for _ in range(count):
+                others.create_publisher(msg_type, topic, 10)
+        deadline = time.monotonic() + timeout_s
+        while any(node.count_publishers(t) < count for t in topics):
+            assert time.monotonic() < deadline, f"{node.get_name()} sees no {count} publishers"
+            time.sleep(0.01)
+        yield others
+    finally:
+        others.destroy_node()
+
+
 def spin_until(
     executor: Executor, done: Callable[[], bool], timeout_s: float = 10.0, what: str = ""
 ) -> None:

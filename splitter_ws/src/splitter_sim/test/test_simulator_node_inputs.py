@@ -12,11 +12,9 @@ node publishes stays finite.
 from __future__ import annotations
 
 import functools
-import time
 
 import numpy as np
 import pytest
-import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
 from hypothesis import HealthCheck, event, given, settings
@@ -36,6 +34,7 @@ from splitter_msgs_py.testing import (
     assert_finite,
     joint_state_msg,
     node_under_test,
+    publishers_on,
     wrench_msg,
 )
 from splitter_sim.core.stepping import MAX_JUMP_FORCE_N, MAX_JUMP_TORQUE_NM
@@ -244,38 +243,24 @@ def test_a_refused_command_answers_no_tick_while_a_stranger_publishes_on_its_top
 ) -> None:
     """Two publishers on each command topic (the graph's node and a stranger): a command
     refused for its contents may be the stranger's, so the tick waits for a good one."""
-    with make_node() as node:
-        others = rclpy.create_node("commanders", context=ros_context)
-        try:
-            for msg_type, topic in (
-                (JointState, names.JOINT_COMMANDS),
-                (WrenchStamped, names.JUMP_COMMAND),
-            ):
-                for _ in range(2):
-                    others.create_publisher(msg_type, topic, 10)
-            deadline = time.monotonic() + 5.0
-            while time.monotonic() < deadline and not all(
-                node.count_publishers(t) == 2 for t in (names.JOINT_COMMANDS, names.JUMP_COMMAND)
-            ):
-                time.sleep(0.01)
-            sim = node.tick.sim
-            node._publish_state()
-            _step(node, 2)
-            now = sim.time_ns
-            q, force = sim._cmd_q, sim._jump_force
-            stamp = make_stamp(("now",), now)
-            unknown = joint_state_msg(stamp, ["x"] * names.N_JOINTS, [0.0] * names.N_JOINTS)
-            node._on_joint_commands(unknown)
-            node._on_jump_command(wrench_msg(stamp, names.BASE_FRAME, (0, 0, 1), (0, 0, 0)))
-            assert sim._cmd_q is q and sim._jump_force is force
-            assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps)
-            assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
-            good = joint_positions_from_radii(MODEL, (2.7, 0.25, 0.18))
-            node._on_joint_commands(conv.joint_state_to_msg(now, good))
-            node._on_jump_command(conv.wrench_to_msg(now, (0.0, 0.0, 5.0)))
-            assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now)
-        finally:
-            others.destroy_node()
+    commands = {names.JOINT_COMMANDS: JointState, names.JUMP_COMMAND: WrenchStamped}
+    with make_node() as node, publishers_on(ros_context, node, commands):
+        sim = node.tick.sim
+        node._publish_state()
+        _step(node, 2)
+        now = sim.time_ns
+        q, force = sim._cmd_q, sim._jump_force
+        stamp = make_stamp(("now",), now)
+        unknown = joint_state_msg(stamp, ["x"] * names.N_JOINTS, [0.0] * names.N_JOINTS)
+        node._on_joint_commands(unknown)
+        node._on_jump_command(wrench_msg(stamp, names.BASE_FRAME, (0, 0, 1), (0, 0, 0)))
+        assert sim._cmd_q is q and sim._jump_force is force
+        assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps)
+        assert rejection_counts(node) == {"joint_commands": 1, "jump_command": 1}
+        good = joint_positions_from_radii(MODEL, (2.7, 0.25, 0.18))
+        node._on_joint_commands(conv.joint_state_to_msg(now, good))
+        node._on_jump_command(conv.wrench_to_msg(now, (0.0, 0.0, 5.0)))
+        assert node.tick.lockstep.stamps == dict.fromkeys(node.tick.lockstep.stamps, now)
 
 
 @pytest.mark.parametrize(
