@@ -16,6 +16,7 @@ import yaml
 
 from splitter_bringup.analysis.campaign import (
     PerturbationSpec,
+    classify_flight,
     make_draw,
     scenario_document,
     scenario_for_draw,
@@ -57,6 +58,23 @@ def test_a_locked_knee_is_found_its_limb_held_and_mirrored() -> None:
     held, mirror = limb_joints(0), limb_joints(mirror_limb(0))
     assert np.allclose(end[mirror], end[held], atol=1e-6)  # the mirror copies it
     assert np.all(np.isfinite(series.angular_velocity_rad_s))
+
+
+def test_a_z_limbs_limp_hip_pitch_settles_with_its_mirror_holding_its_pitch() -> None:
+    """Seed 0's campaign draw 142: a z limb's hip pitch goes limp at 0.31 s. Its mirror
+    keeps its hip pitch (``mirror_limb_command``) and the flight settles at 5.07 s; a
+    mirror copying the swing left w_z at 0.38 rad/s at 7 s (and above 0.01 at 20 s)."""
+    draw = make_draw(142, 1110119642, perturbation=PerturbationSpec(fault_time_max_s=2.0))
+    assert draw.fault == JointFault("hemi_a_z_pos_hip_pitch", "limp", draw.fault.time_s)
+    scenario = scenario_for_draw(load_scenario("spin_stabilization", "mpc"), draw, 7.0)
+    series = run_closed_loop(scenario)
+    outcome = classify_flight(series.t_s, series.angular_velocity_rad_s)
+    assert outcome.success and outcome.settling_time_s < 6.0
+    pitch = JOINT_INDEX["hemi_a_z_pos_hip_pitch"]
+    mirror_pitch = limb_joints(mirror_limb(pitch // 3)).start + 1
+    found = series.extras["joint_detected"][:, pitch].argmax()
+    held = series.joint_position[found + 20 :, mirror_pitch]  # from 0.1 s after detection
+    assert np.ptp(held) < 1e-3 < np.ptp(series.joint_position[found:, pitch])
 
 
 def test_without_handling_nothing_is_found_and_the_plan_ignores_the_fault() -> None:

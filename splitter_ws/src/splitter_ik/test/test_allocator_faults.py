@@ -70,3 +70,23 @@ def test_a_locked_reel_holds_the_tether_whatever_the_setpoint() -> None:
     assert a.joint_position[TETHER_INDEX] == 4.0
     assert a.joint_velocity[TETHER_INDEX] == 0.0
     assert a.saturated
+
+
+def test_the_mirror_of_a_z_limbs_limp_hip_pitch_holds_its_pitch_while_the_limb_swings() -> None:
+    """A limp hip pitch swings (a pendulum in the centrifugal pull): its limb folds, the
+    mirror of a z limb folds too but keeps its hip pitch instead of chasing the swing."""
+    allocator = TetherLimbAllocator(MODEL, initial_radii_m=(2.5, 0.3, 0.2))
+    pitch = JOINT_INDEX["hemi_a_z_pos_hip_pitch"]
+    limb = pitch // 3
+    mirror = limb_joints(mirror_limb(limb))
+    mirror_pitch = float(allocator._state.joint_position[mirror.start + 1])
+    wanted = principal_inertia(MODEL, (2.5, 0.25, 0.25))
+    for k in range(1, 301):
+        q = allocator._state.joint_position.copy()
+        q[pitch] = 0.35 + 0.5 * np.sin(2.0 * np.pi * k * TICK_NS * 1e-9)  # the swing [rad]
+        allocator.set_remaining(remaining_shape(MODEL, [pitch], q, moving_faults=[pitch]), q)
+        a = allocator.allocate(k * TICK_NS, wanted, W)
+        command = np.asarray(a.joint_position)
+        assert command[mirror.start + 1] == pytest.approx(mirror_pitch, abs=1e-12)
+    assert command[limb_joints(limb).stop - 1] == pytest.approx(MODEL.knee_max_rad)  # folded
+    assert command[mirror.stop - 1] == pytest.approx(MODEL.knee_max_rad)

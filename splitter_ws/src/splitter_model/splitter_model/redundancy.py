@@ -26,8 +26,18 @@ swings its shank towards ``v``, to ``hip_pitch + knee = pi / 2``. With the hip
 pitch at -1.35 rad that is beyond the folded stop (2.6 rad): the pull holds the
 knee folded there instead of leaving it a pendulum (an undamped one: a limp
 joint has no friction to stop it). A limp hip pitch keeps swinging, but with the
-knee folded its tip is 0.11 m from the hip, four times less than stretched, and
-its mirror follows it.
+knee folded its tip is 0.11 m from the hip, four times less than stretched. The
+swing is a pendulum in the centrifugal pull (period ~1 s at 1 rad/s) in the plane of
+the tether and the limb's axis, so its products of inertia are ``I_xy`` for a y limb
+and ``I_xz`` for a z limb. ``I_xy`` tilts the reference spin axis (y,
+:data:`SPIN_AXIS`): the mirror of a y limb copies the swing to cancel it. ``I_xz``
+leaves y principal, and the mirror of a z limb does not chase the swing: it folds its
+knee too but keeps its hip pitch (:func:`mirror_limb_command`). A mirror chasing a
+swing through its servos kept the pair swinging to the end of the flight; left alone,
+the swing couples into the body's rotation, where the MPC's feedback takes it out, and
+most swinging limbs come to rest against the hip pitch's stop at +-pi, past the
+swing's inverted pose, where the pull holds them (measured on seed 0's campaign:
+README, "A limb or the reel fails").
 
 **The effective radius.** The moments depend on the limbs of one axis only
 through the mean of their squared reaches (paper eq. 2, ``4 m_y r_y^2``), so the
@@ -37,9 +47,9 @@ mirror limbs of reach ``r_h`` and ``n`` free limbs of reach ``r``,
 reachable set that remains is :class:`~splitter_model.reachable.ReachableSet` with
 narrower bounds. A locked reel fixes ``r_x``. Exact for tips on their axes;
 a limp joint can swing its tip off its axis (a limp hip pitch turns the tip
-towards the tether), which this model counts by its distance only (its
-products of inertia are what the mirror cancels, the rest is the MPC's
-feedback).
+towards the tether), which this model counts by its distance only (the
+products of inertia of a limb that stays are what its mirror cancels; those of a
+swinging limp hip pitch, and the rest, are the MPC's feedback).
 
 ROS-free, numpy only.
 """
@@ -68,6 +78,10 @@ from splitter_model.reachable import ReachableSet, reachable_set
 # [rad] hip pitch of a limb whose knee failed: the radial pitch of the folded knee
 # (-1.30 rad for the paper's limb) less 0.05 rad, so a limp knee rests on its fold stop
 FOLD_STOP_MARGIN_RAD = 0.05
+# [-] the body axis of the reference spin (y: w_ref of every spinning scenario, paper
+# Table I); a limp hip pitch's swing in the plane of the tether and a limb along another
+# axis leaves it a principal axis
+SPIN_AXIS = 1
 # [m] half-width kept around a radius that cannot move (a locked reel, an axis with no
 # free limb): the MPC's bounds stay a box with an interior
 FIXED_RADIUS_TOLERANCE_M = 1e-3
@@ -158,6 +172,21 @@ def held_limb_command(
         q[hip_pitch] = fold_stop_pitch_rad(model)
     elif hip_pitch in moving:
         q[knee] = model.knee_max_rad
+    return q
+
+
+def mirror_limb_command(
+    limb: int, held_command: ArrayLike, mirror_previous: ArrayLike, moving_faults: Iterable[int]
+) -> NDArray[np.float64]:
+    """Joint command (3) of the mirror of held limb ``limb``: a copy of ``held_command``,
+    except for the limp hip pitch of a limb across the spin axis (a z limb), whose swing
+    it does not chase: it keeps its hip pitch where ``mirror_previous`` (its last
+    command) has it and copies the rest (module doc)."""
+    q = np.asarray(held_command, dtype=float).reshape(3).copy()
+    hip_pitch = LIMB_JOINTS.index("hip_pitch")
+    across_spin = LIMB_RADIUS_INDEX[limb] != SPIN_AXIS
+    if across_spin and limb_joints(limb).start + hip_pitch in set(moving_faults):
+        q[hip_pitch] = float(np.asarray(mirror_previous, dtype=float).reshape(3)[hip_pitch])
     return q
 
 

@@ -15,6 +15,7 @@ from splitter_model.redundancy import (
     held_limb_command,
     limb_reaches_m,
     mirror_limb,
+    mirror_limb_command,
     remaining_shape,
 )
 
@@ -92,3 +93,38 @@ def test_a_held_limb_folds_away_from_a_limp_joint_only() -> None:
     assert np.pi / 2 - fold_stop_pitch_rad(MODEL) > MODEL.knee_max_rad
     limp_pitch = held_limb_command(MODEL, 0, measured, [pitch])
     assert limp_pitch[2] == MODEL.knee_max_rad and limp_pitch[1] == measured[1]
+
+
+def test_a_mirror_copies_its_held_limb_except_a_z_limbs_limp_hip_pitch_swing() -> None:
+    held = np.array([0.1, 0.7, MODEL.knee_max_rad])  # where a limp hip pitch swung, folded
+    previous = np.array([0.0, -1.05, 2.09])  # the mirror's last command
+    z_limb = LIMB_NAMES.index("hemi_a_z_pos")
+    z_knee, z_pitch = JOINT_INDEX["hemi_a_z_pos_knee"], JOINT_INDEX["hemi_a_z_pos_hip_pitch"]
+    for moving in ([], [z_knee], [JOINT_INDEX["hemi_a_z_neg_hip_pitch"]]):
+        assert np.array_equal(mirror_limb_command(z_limb, held, previous, moving), held)
+    mirrored = mirror_limb_command(z_limb, held, previous, [z_pitch])
+    assert mirrored[1] == previous[1]  # its hip pitch stays where it was
+    assert mirrored[0] == held[0] and mirrored[2] == held[2]  # the same reach: folded
+    assert limb_reaches_m(MODEL, _limb_pose(z_limb, held))[z_limb] == pytest.approx(
+        limb_reaches_m(MODEL, _limb_pose(z_limb, mirrored))[z_limb], abs=1e-12
+    )
+    # a y limb's swing tilts the spin axis (I_xy): its mirror copies it to cancel that
+    y_pitch = JOINT_INDEX["hemi_a_y_pos_hip_pitch"]
+    assert np.array_equal(mirror_limb_command(0, held, previous, [y_pitch]), held)
+
+
+def test_a_z_limbs_swing_leaves_y_principal_a_y_limbs_tilts_it() -> None:
+    """Why only a z limb's mirror may hold: the products of inertia of a lone swing."""
+    q = joint_positions_from_radii(MODEL, (2.8, 0.2, 0.2))
+    for limb, coupled in ((LIMB_NAMES.index("hemi_a_z_pos"), (0, 2)), (0, (0, 1))):
+        swung = q.copy()
+        swung[limb_joints(limb).start + 1] += 0.5  # [rad] the hip pitch swung
+        tensor = _tensor(swung)
+        off = [(i, j) for i in range(3) for j in range(i + 1, 3) if abs(tensor[i, j]) > 1e-9]
+        assert off == [coupled]
+
+
+def _limb_pose(limb: int, angles: np.ndarray) -> np.ndarray:
+    q = joint_positions_from_radii(MODEL, (2.0, 0.2, 0.2))
+    q[limb_joints(limb)] = angles
+    return q

@@ -60,7 +60,7 @@ from splitter_model.actuators import TETHER_INDEX
 from splitter_model.joints import LIMB_JOINTS, limb_joints
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import RobotModel, principal_inertia, tether_tension_3d
-from splitter_model.redundancy import RemainingShape, held_limb_command
+from splitter_model.redundancy import RemainingShape, held_limb_command, mirror_limb_command
 from splitter_msgs_py.core.parameter_fields import FRACTION, parameter_field
 
 KNEE_Y_INDEX = 2  # hemi_a_y_pos_knee
@@ -304,8 +304,9 @@ class TetherLimbAllocator:
         """Re-plan with what a fault left (None: all healthy); call every tick after one.
 
         Held limbs are commanded where ``measured_joint_position`` (25) has them, their
-        mirrors copy them, the free limbs carry the rest of each radius; a locked reel
-        holds the tether where it stopped (:mod:`splitter_model.redundancy`).
+        mirrors copy them (but for a z limb's limp hip pitch swing), the free limbs carry
+        the rest of each radius; a locked reel holds the tether where it stopped
+        (:mod:`splitter_model.redundancy`).
         """
         q = np.asarray(measured_joint_position, dtype=float)
         if q.shape != (25,) or not np.all(np.isfinite(q)):
@@ -376,7 +377,9 @@ class TetherLimbAllocator:
             )
             q[limb_joints(limb)] = held
         for mirror, limb in remaining.roles.mirrors:
-            q[limb_joints(mirror)] = q[limb_joints(limb)]
+            q[limb_joints(mirror)] = mirror_limb_command(
+                limb, q[limb_joints(limb)], before[limb_joints(mirror)], remaining.moving_faults
+            )
         # towards their poses within the knees' speed and acceleration (as the free limbs
         # move), from the speed they had: a joint stopped at once would overshoot its stop
         dt, knee = self.config.control_period_s, self._limits[1]
