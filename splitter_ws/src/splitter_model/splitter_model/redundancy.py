@@ -34,10 +34,10 @@ and ``I_xz`` for a z limb. ``I_xy`` tilts the reference spin axis (y,
 leaves y principal, and the mirror of a z limb does not chase the swing: it folds its
 knee too but keeps its hip pitch (:func:`mirror_limb_command`). A mirror chasing a
 swing through its servos kept the pair swinging to the end of the flight; left alone,
-the swing couples into the body's rotation, where the MPC's feedback takes it out, and
-most swinging limbs come to rest against the hip pitch's stop at +-pi, past the
-swing's inverted pose, where the pull holds them (measured on seed 0's campaign:
-README, "A limb or the reel fails").
+the swing couples into the body's rotation, where the MPC's feedback takes it out.
+Seed 0's campaign (README, "A limb or the reel fails"): 27 of 28 z limb draws
+stabilized against 21 copying; 17 of the 28 limbs came to rest against the hip
+pitch's stop at +-pi, past the swing's inverted pose, where the pull holds them.
 
 **The effective radius.** The moments depend on the limbs of one axis only
 through the mean of their squared reaches (paper eq. 2, ``4 m_y r_y^2``), so the
