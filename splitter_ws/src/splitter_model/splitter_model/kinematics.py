@@ -41,11 +41,20 @@ LIMB_OUTWARD_AXES = (_E[1], -_E[1], _E[2], -_E[2])
 _Y_LIMBS, _Z_LIMBS = list(limbs_along("y")), list(limbs_along("z"))
 
 
-def limb_frame(limb_index: int) -> NDArray[np.float64]:
-    """Rows (u, v, w) of limb ``limb_index`` (0..7, order of ``joints.LIMB_NAMES``)."""
+def _limb_frame_rows(limb_index: int) -> NDArray[np.float64]:
     u = LIMB_OUTWARD_AXES[LIMB_AXES.index(LIMB_AXIS_OF[limb_index])]
     v = LIMB_HEMI_SIGNS[limb_index] * _E[0]
     return np.stack([u, v, np.cross(u, v)])
+
+
+# (8, 3, 3): rows (u, v, w) of every limb, built once (constant geometry)
+LIMB_FRAMES = np.stack([_limb_frame_rows(limb) for limb in range(N_LIMBS)])
+LIMB_FRAMES.setflags(write=False)
+
+
+def limb_frame(limb_index: int) -> NDArray[np.float64]:
+    """Rows (u, v, w) of limb ``limb_index`` (0..7, order of ``joints.LIMB_NAMES``)."""
+    return LIMB_FRAMES[limb_index].copy()
 
 
 @dataclass(frozen=True)
@@ -65,7 +74,7 @@ def _limb_plane(model: RobotModel, limb_index: int, joint_angles_rad: ArrayLike)
     q1, q2, q3 = (float(a) for a in np.asarray(joint_angles_rad, dtype=float))
     l1, l2 = model.thigh_length_m, model.shank_length_m
     knee_u, knee_plane = l2 * math.cos(q2 + q3), l2 * math.sin(q2 + q3)
-    u, v, w = limb_frame(limb_index)
+    u, v, w = LIMB_FRAMES[limb_index]
     return _LimbPlane(
         p_u=l1 * math.cos(q2) + knee_u,
         p_plane=l1 * math.sin(q2) + knee_plane,
@@ -103,6 +112,28 @@ def limb_jacobian(
     return np.stack([p.p_plane * p.d_v_rot, d_pitch, d_knee], axis=1)
 
 
+def limb_jacobians(model: RobotModel, joint_positions: ArrayLike) -> NDArray[np.float64]:
+    """(8, 3, 3): :func:`limb_jacobian` of every limb at once [m/rad].
+
+    ``joint_positions``: the joints in ``JOINT_NAMES`` order (the tether's entry, if
+    given, is not read). The same closed form, vectorised over the limbs: the
+    simulator's snapshot takes it at every step.
+    """
+    q = np.asarray(joint_positions, dtype=float)[: 3 * N_LIMBS].reshape(N_LIMBS, 3)
+    q1, q2, q23 = q[:, 0], q[:, 1], q[:, 1] + q[:, 2]
+    l1, l2 = model.thigh_length_m, model.shank_length_m
+    knee_u, knee_plane = l2 * np.cos(q23), l2 * np.sin(q23)
+    p_u = l1 * np.cos(q2) + knee_u
+    p_plane = l1 * np.sin(q2) + knee_plane
+    u, v, w = LIMB_FRAMES[:, 0], LIMB_FRAMES[:, 1], LIMB_FRAMES[:, 2]
+    c1, s1 = np.cos(q1)[:, None], np.sin(q1)[:, None]
+    v_rot = c1 * v + s1 * w
+    d_v_rot = -s1 * v + c1 * w
+    d_knee = -knee_plane[:, None] * u + knee_u[:, None] * v_rot
+    d_pitch = -p_plane[:, None] * u + p_u[:, None] * v_rot
+    return np.stack([p_plane[:, None] * d_v_rot, d_pitch, d_knee], axis=2)
+
+
 def limb_joint_torques(
     model: RobotModel, joint_positions: ArrayLike, tip_forces_n: ArrayLike
 ) -> NDArray[np.float64]:
@@ -110,14 +141,8 @@ def limb_joint_torques(
 
     ``tip_forces_n``: (8, 3) the force each limb exerts on its lumped mass, base frame [N].
     """
-    q = np.asarray(joint_positions, dtype=float)
     forces = np.asarray(tip_forces_n, dtype=float).reshape(N_LIMBS, 3)
-    return np.concatenate(
-        [
-            limb_jacobian(model, limb, q[limb_joints(limb)]).T @ forces[limb]
-            for limb in range(N_LIMBS)
-        ]
-    )
+    return np.einsum("lij,li->lj", limb_jacobians(model, joint_positions), forces).ravel()
 
 
 def limb_inverse_kinematics(

@@ -13,6 +13,7 @@ from splitter_model.kinematics import (
     limb_forward_kinematics,
     limb_inverse_kinematics,
     limb_jacobian,
+    limb_jacobians,
     limb_joint_torques,
     limb_offsets_from_joint_positions,
     radii_from_joint_positions,
@@ -128,6 +129,17 @@ def test_limb_jacobian_is_the_derivative_of_the_forward_kinematics(
         axis=1,
     )
     np.testing.assert_allclose(limb_jacobian(MODEL, limb, q), numeric, atol=1e-8)
+
+
+def test_all_limb_jacobians_at_once_equal_each_limbs() -> None:
+    """The vectorised form (the simulator's snapshot) is the per-limb closed form."""
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-2.5, 2.5, 25)
+    at_once = limb_jacobians(MODEL, q)
+    for limb in range(8):
+        np.testing.assert_allclose(
+            at_once[limb], limb_jacobian(MODEL, limb, q[limb_joints(limb)]), rtol=0, atol=1e-14
+        )
 
 
 def test_joint_torques_do_the_work_of_the_tip_force() -> None:
