@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import functools
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,13 +151,37 @@ def reachable_set(model: RobotModel) -> ReachableSet:
     )
 
 
+# Every active set but "all free" (the interior, solved first): 0 free, 1 at lo, 2 at hi.
+_ACTIVE_SETS = np.array(list(itertools.product((0, 1, 2), repeat=3))[1:])
+_FREE = _ACTIVE_SETS == 0
+_AT_LOW = _ACTIVE_SETS == 1
+
+
+@functools.lru_cache(maxsize=16)
+def _free_solvers(a_bytes: bytes) -> NDArray[np.float64]:
+    """(26, 3, 3): per active set, the least-squares map rhs -> free squared radii.
+
+    Row ``i`` of a set's matrix is zero unless ``s_i`` is free; the free rows are the
+    pseudo-inverse of ``a``'s free columns (what ``lstsq`` would solve, built once).
+    """
+    a = np.frombuffer(a_bytes, dtype=float).reshape(3, 3)
+    solvers = np.zeros((len(_ACTIVE_SETS), 3, 3))
+    for k, free in enumerate(_FREE):
+        solvers[k][free] = np.linalg.pinv(a[:, free])
+    solvers.setflags(write=False)
+    return solvers
+
+
 def _box_least_squares(
     a: NDArray[np.float64], b: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """argmin |a s - b| over lo <= s <= hi, invertible 3x3 ``a``: exact active-set enumeration.
 
-    Raises ``ValueError`` if no candidate is finite, which cannot happen for a finite
-    ``b`` (the vertices are finite and their scaled distances cannot overflow).
+    All 26 bounded active sets are solved at once (the allocator projects every
+    tick); the first feasible candidate of least distance, in ``_ACTIVE_SETS``
+    order, wins. Raises ``ValueError`` if no candidate is finite, which cannot
+    happen for a finite ``b`` (the vertices are finite and their scaled distances
+    cannot overflow).
     """
     slack = 1e-12 * np.maximum(1.0, np.abs(hi))
     scale = max(1.0, float(np.max(np.abs(b))))
@@ -172,29 +195,18 @@ def _box_least_squares(
             and np.all(interior <= hi + slack)
         ):
             return np.clip(interior, lo, hi)  # the unconstrained minimum is feasible
-        best, best_cost = None, math.inf
-        for pattern in itertools.product((0, 1, 2), repeat=3):  # 0 free, 1 at lo, 2 at hi
-            s = np.where(np.array(pattern) == 1, lo, hi).astype(float)
-            free = [i for i, p in enumerate(pattern) if p == 0]
-            if free:
-                fixed = [i for i, p in enumerate(pattern) if p != 0]
-                rhs = b - a[:, fixed] @ s[fixed]
-                if len(free) == 3:
-                    s_free = np.linalg.solve(a, rhs)
-                else:
-                    s_free = np.linalg.lstsq(a[:, free], rhs, rcond=None)[0]
-                if (
-                    not np.all(np.isfinite(s_free))
-                    or np.any(s_free < lo[free] - slack[free])
-                    or np.any(s_free > hi[free] + slack[free])
-                ):
-                    continue
-                s[free] = np.clip(s_free, lo[free], hi[free])
-            # (|a s - b|^2 - |b|^2) / scale: same order as the distance, |a s| is bounded
-            achieved = a @ s
-            cost = float(achieved @ achieved / scale - 2.0 * b_scaled @ achieved)
-            if math.isfinite(cost) and (best is None or cost < best_cost):
-                best, best_cost = s, cost
-    if best is None:
+        bound = np.where(_AT_LOW, lo, hi)  # (26, 3) the bounded entries' values
+        rhs = b - np.where(_FREE, 0.0, bound) @ a.T
+        s_free = np.einsum("kij,kj->ki", _free_solvers(np.ascontiguousarray(a).tobytes()), rhs)
+        feasible = np.all(
+            ~_FREE | (np.isfinite(s_free) & (s_free >= lo - slack) & (s_free <= hi + slack)),
+            axis=1,
+        )
+        candidates = np.where(_FREE, np.clip(s_free, lo, hi), bound)
+        # (|a s - b|^2 - |b|^2) / scale: same order as the distance, |a s| is bounded
+        achieved = candidates @ a.T
+        cost = np.einsum("ki,ki->k", achieved, achieved) / scale - 2.0 * achieved @ b_scaled
+        usable = feasible & np.isfinite(cost)
+    if not np.any(usable):
         raise ValueError(f"no finite projection of the requested inertia {b.tolist()}")
-    return best
+    return candidates[int(np.argmin(np.where(usable, cost, np.inf)))].copy()

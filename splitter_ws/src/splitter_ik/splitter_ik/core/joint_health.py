@@ -44,6 +44,7 @@ ROS-free, numpy only.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -53,6 +54,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from splitter_model.joints import JOINT_NAMES, N_JOINTS, TETHER_INDEX
 from splitter_msgs_py.core.parameter_fields import parameter_field
+
+_Joints = NDArray[np.float64]  # one value per joint (N_JOINTS)
 
 STUCK = "stuck"
 NOT_FOLLOWING = "not_following"
@@ -263,7 +266,10 @@ class JointHealthMonitor:
             )
         ]
         # (stamp, position, velocity) of the commands sent
-        self._commands: deque[tuple[int, NDArray[np.float64], NDArray[np.float64]]] = deque()
+        # (stamp [ns], position, velocity, low, high): low/high bound the command and
+        # where its velocity takes it within command_extrapolation_s (kept, not recomputed
+        # at every measurement)
+        self._commands: deque[tuple[int, _Joints, _Joints, _Joints, _Joints]] = deque()
         self._measured: deque[tuple[int, NDArray[np.float64]]] = deque()
         self._detections: dict[int, Detection] = {}
         self._found_at: dict[int, float] = {}  # where each stuck joint was found
@@ -293,7 +299,10 @@ class JointHealthMonitor:
         commands = self._commands
         while commands and commands[-1][0] >= t_ns:  # a repeated stamp replaces
             commands.pop()
-        commands.append((int(t_ns), q.copy(), v.reshape(N_JOINTS).copy()))
+        v = v.reshape(N_JOINTS).copy()
+        ahead = q + v * self.config.command_extrapolation_s
+        low, high = (np.minimum(q, ahead), np.maximum(q, ahead)) if v.any() else (q, q)
+        commands.append((int(t_ns), q.copy(), v, low.copy(), high.copy()))
         for servo in self._servos if self.enabled else ():
             servo.on_command(int(t_ns), commands[-1][1], commands[-1][2])
         horizon = int(t_ns) - self._keep_ns()
@@ -353,7 +362,7 @@ class JointHealthMonitor:
         k = bisect.bisect_right(commands, t_ns, key=lambda c: c[0]) - 1
         if k < 0:
             return None
-        stamp, q, v = commands[k]
+        stamp, q, v, _, _ = commands[k]
         return q + v * min((t_ns - stamp) * 1e-9, self.config.command_extrapolation_s)
 
     def _stuck(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -426,7 +435,6 @@ class JointHealthMonitor:
         earliest_start = t_ns - round(c.envelope_window_s * 1e9)
         starts = [(t, m) for t, m in self._measured if earliest_start <= t <= latest_start]
         delay_ns = round(c.command_delay_s * 1e9)
-        reach = c.command_extrapolation_s
         commands = self._commands
         k = len(commands) - 1
         low, high = target.copy(), target.copy()  # the range of the commands since s - delay
@@ -434,9 +442,8 @@ class JointHealthMonitor:
         for s_ns, m in reversed(starts):
             since = s_ns - delay_ns
             while k >= 0 and commands[k][0] > since:
-                _, cq, cv = commands[k]
-                low = np.minimum(low, np.minimum(cq, cq + cv * reach))
-                high = np.maximum(high, np.maximum(cq, cq + cv * reach))
+                _, _, _, c_low, c_high = commands[k]
+                low, high = np.minimum(low, c_low), np.maximum(high, c_high)
                 k -= 1
             before = self._command_at(since)
             if before is None:
@@ -451,14 +458,16 @@ class JointHealthMonitor:
     def _outside_commands(self, t_ns: int, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         c = self.config
         start = t_ns - round(c.envelope_window_s * 1e9)
-        reach = self.config.command_extrapolation_s
-        recent = [(q, v) for stamp, q, v in self._commands if stamp >= start]
-        window = [q for q, _ in recent] + [q + v * reach for q, v in recent if v.any()]
+        commands = self._commands
+        if not commands or commands[0][0] > start:
+            return np.zeros(N_JOINTS, dtype=bool)  # less than a window of commands yet
+        first = bisect.bisect_left(commands, start, key=lambda command: command[0])
+        recent = list(itertools.islice(commands, first, None))
+        lows = [command[3] for command in recent]
+        highs = [command[4] for command in recent]
         before = self._command_at(start)
         if before is not None:
-            window.append(before)
-        if not window or self._commands[0][0] > start:
-            return np.zeros(N_JOINTS, dtype=bool)  # less than a window of commands yet
-        stacked = np.stack(window)
-        low, high = stacked.min(axis=0), stacked.max(axis=0)
+            lows.append(before)
+            highs.append(before)
+        low, high = np.min(lows, axis=0), np.max(highs, axis=0)
         return (q < low - self._margin) | (q > high + self._margin)
