@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from splitter_tools.bench_mpc import run_benchmark
+from splitter_tools.bench_mpc import parse_backend, run_benchmark
 
 pytestmark = pytest.mark.slow
 
@@ -26,3 +26,18 @@ def test_short_benchmark_reports_agreeing_closed_loops_and_plots(tmp_path) -> No
     assert result["median_ms"] <= result["p99_ms"] <= result["max_ms"]
     assert plot.stat().st_size > 10_000
     assert (result["goal_p99_ms"], result["goal_speedup_median"]) == (3.0, 100.0)  # issue 18
+
+
+def test_back_ends_side_by_side_in_one_run() -> None:
+    """The worker's and the in-process fatrop solve the same problems: the same loops."""
+    result = run_benchmark(("fatrop", "fatrop/in-process"), duration_s=0.3, compile_code=False)
+    worker, own = result["backends"]
+    assert (worker["backend"], worker["in_process"]) == ("fatrop", False)
+    assert (own["backend"], own["in_process"]) == ("fatrop/in-process", True)
+    assert result["median_ms"] == worker["median_ms"]  # the first one is the top level
+    for figures in (worker, own):
+        assert figures["n_solves"] == 3 and figures["failed_solves"] == 0
+        assert figures["max_abs_w_diff"] <= 0.01
+    with pytest.raises(ValueError, match="unknown back-end"):
+        parse_backend("fatrop/elsewhere")
+    assert parse_backend("sqp/in-process") == ("sqp", False)

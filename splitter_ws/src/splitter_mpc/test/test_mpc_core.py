@@ -357,3 +357,22 @@ def test_a_wild_start_is_not_scaled_below_ipopts_minimum(mpc) -> None:
     weights = scaled_weights(MpcWeights(), 2.0**40)  # gradient ~5e14
     data = mpc.problem(PlanRequest(0, x, [0, 1, 0], np.tile(IDENTITY, (51, 1)), weights))
     assert mpc.backend.objective_scale(data) == OBJECTIVE_SCALE_MIN
+
+
+def test_fatrops_tuning_options_reach_it_and_are_checked() -> None:
+    """mu_init and bound_push go to fatrop: the same cold problem takes other iterations."""
+    state = np.concatenate([W0, IDENTITY, I0])
+    request = PlanRequest(0, state, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    iterations = {}
+    for mu_init in (1e2, 1e-3):
+        options = SolverOptions(compile=False, isolated=False, fatrop_mu_init=mu_init)
+        settings = MpcSettings(dt_s=0.05, integrator="rk4", options=options)
+        with InertialMorphingMpc(MODEL, settings) as mpc:
+            plan = mpc.solve(request)
+        assert plan.result.converged
+        iterations[mu_init] = plan.result.iterations
+    assert iterations[1e2] != iterations[1e-3]
+    for field in ("fatrop_mu_init", "fatrop_bound_push"):
+        for bad in (0.0, -1.0, float("nan")):
+            with pytest.raises(ValueError, match=field):
+                SolverOptions(**{field: bad})

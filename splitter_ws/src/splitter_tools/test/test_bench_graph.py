@@ -2,9 +2,26 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
-from splitter_tools.bench_graph import METRIC_FLOOR, largest_relative_difference
+from splitter_tools.bench_graph import (
+    METRIC_FLOOR,
+    cpu_goal_s,
+    cpu_seconds,
+    largest_relative_difference,
+)
+
+
+def test_the_cpu_count_includes_the_processes_it_started() -> None:
+    """A child that burns ~0.4 s of CPU shows up in the count once waited for."""
+    before = cpu_seconds()
+    burn = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.4: pass"
+    subprocess.run([sys.executable, "-c", burn], check=True)
+    assert cpu_seconds() - before >= 0.4
+    assert cpu_goal_s(16.0) == pytest.approx(0.8 * 16.0 + 5.0)
 
 
 def test_largest_relative_difference_names_the_metric() -> None:

@@ -112,6 +112,15 @@ class SolverOptions:
     )
     # optimality of the scaled problem (interior point) / step size (SQP)
     tol: float = parameter_field(1e-6, "solver tolerance (scaled problem)", bounds=(1e-14, 1e-2))
+    # fatrop's own defaults (fatrop 0.0.4: FatropAlg mu_init, FatropData bound_push)
+    fatrop_mu_init: float = parameter_field(
+        1e2, "fatrop: initial barrier parameter mu_init", bounds=(1e-12, 1e6)
+    )
+    fatrop_bound_push: float = parameter_field(
+        1e-2,
+        "fatrop: bound_push, how far the start is pushed inside its bounds",
+        bounds=(1e-12, 0.5),
+    )
     usable_infeasibility: float = 1e-4  # largest constraint violation of an executable plan
     # sqp/rti iterates carry the linearisation error of the dynamics (RTI's premise):
     rti_usable_infeasibility: float = 1e-2
@@ -124,7 +133,14 @@ class SolverOptions:
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be an int >= 1, got {self.max_iter!r}")
-        for name in ("max_time_s", "tol", "usable_infeasibility", "rti_usable_infeasibility"):
+        for name in (
+            "max_time_s",
+            "tol",
+            "usable_infeasibility",
+            "rti_usable_infeasibility",
+            "fatrop_mu_init",
+            "fatrop_bound_push",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
@@ -228,6 +244,8 @@ class NlpBackend:
                 "fatrop.print_level": 0,
                 "fatrop.max_iter": options.max_iter * 5,
                 "fatrop.tol": options.tol,
+                "fatrop.mu_init": options.fatrop_mu_init,
+                "fatrop.bound_push": options.fatrop_bound_push,
             }
         expanded = ca.nlpsol(f"morphing_{plugin}", plugin, nlp, {**opts, "expand": True})
         self._solver = expanded
