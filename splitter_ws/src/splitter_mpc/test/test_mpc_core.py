@@ -360,18 +360,48 @@ def test_a_wild_start_is_not_scaled_below_ipopts_minimum(mpc) -> None:
 
 
 def test_fatrops_tuning_options_reach_it_and_are_checked() -> None:
-    """mu_init and bound_push go to fatrop: the same cold problem takes other iterations."""
+    """mu_init and bound_push go to fatrop: the same cold problem takes other iterations;
+    the defaults are fatrop's own (the same iterations as without them)."""
     state = np.concatenate([W0, IDENTITY, I0])
     request = PlanRequest(0, state, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
     iterations = {}
-    for mu_init in (1e2, 1e-3):
+    for mu_init in (0.1, 1e-3):
         options = SolverOptions(compile=False, isolated=False, fatrop_mu_init=mu_init)
         settings = MpcSettings(dt_s=0.05, integrator="rk4", options=options)
         with InertialMorphingMpc(MODEL, settings) as mpc:
             plan = mpc.solve(request)
         assert plan.result.converged
         iterations[mu_init] = plan.result.iterations
-    assert iterations[1e2] != iterations[1e-3]
+    assert iterations[0.1] != iterations[1e-3]
+    # the defaults are fatrop's own: given or not, the solve is the same to the last bit
+    with InertialMorphingMpc(MODEL, settings) as mpc:
+        data, ocp = mpc.problem(request), mpc.ocp
+    defaults = SolverOptions()
+    nlp = {"x": ocp.z, "p": ocp.p, "f": ocp.objective, "g": ocp.g}
+    common = {
+        "structure_detection": "manual",
+        "nx": ocp.nx,
+        "nu": ocp.nu,
+        "ng": ocp.ng,
+        "N": ocp.horizon,
+        "equality": ocp.equality,
+        "expand": True,
+        "print_time": False,
+        "fatrop.print_level": 0,
+    }
+    tuned = {
+        "fatrop.mu_init": defaults.fatrop_mu_init,
+        "fatrop.bound_push": defaults.fatrop_bound_push,
+    }
+    solutions = [
+        np.asarray(
+            ca.nlpsol("s", "fatrop", nlp, opts)(
+                x0=data.z0, p=data.p, lbx=data.lbz, ubx=data.ubz, lbg=data.lbg, ubg=data.ubg
+            )["x"]
+        )
+        for opts in (common, {**common, **tuned})
+    ]
+    np.testing.assert_array_equal(solutions[0], solutions[1])
     for field in ("fatrop_mu_init", "fatrop_bound_push"):
         for bad in (0.0, -1.0, float("nan")):
             with pytest.raises(ValueError, match=field):

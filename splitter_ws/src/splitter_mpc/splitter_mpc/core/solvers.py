@@ -112,9 +112,10 @@ class SolverOptions:
     )
     # optimality of the scaled problem (interior point) / step size (SQP)
     tol: float = parameter_field(1e-6, "solver tolerance (scaled problem)", bounds=(1e-14, 1e-2))
-    # fatrop's own defaults (fatrop 0.0.4: FatropAlg mu_init, FatropData bound_push)
+    # fatrop's own defaults in the casadi wheel (checked: setting them leaves every
+    # iterate as it was; fatrop's sources at another version say mu_init 1e2)
     fatrop_mu_init: float = parameter_field(
-        1e2, "fatrop: initial barrier parameter mu_init", bounds=(1e-12, 1e6)
+        0.1, "fatrop: initial barrier parameter mu_init", bounds=(1e-12, 1e6)
     )
     fatrop_bound_push: float = parameter_field(
         1e-2,
