@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from splitter_bringup.analysis.metrics import attitude_reference_series, flight_summary
-from splitter_bringup.run.library import controller_config, run_closed_loop
+from splitter_bringup.run.library import controller_config, library_controller, run_closed_loop
 from splitter_bringup.scenario.definition import load_scenario
 from splitter_model.model import RobotModel
 from splitter_mpc.core.controller import MorphingController
@@ -262,3 +262,13 @@ def test_solver_failures_mid_run_are_survived() -> None:
     h = np.linalg.norm(series.extras["angular_momentum_world"], axis=1)
     assert np.max(np.abs(h - h[0])) < 1e-3 * h[0]
     assert np.all(series.radii_m <= MODEL.radii_max_m + 1e-6)
+
+
+def test_an_open_loop_library_run_starts_no_solver_worker() -> None:
+    """A disabled controller never solves: its MPC never builds its back-end (~1 s)."""
+    scenario = load_scenario("spin_stabilization", "open_loop")
+    with library_controller(MODEL, controller_config(scenario)) as open_loop:
+        run_closed_loop(scenario, model=MODEL, controller=open_loop, duration_s=0.5)
+        assert open_loop.mpc.backend is None
+    with library_controller(MODEL, controller_config(load_scenario("spin_stabilization"))) as mpc:
+        assert mpc.mpc.backend is not None  # an enabled one starts it with the controller

@@ -406,3 +406,16 @@ def test_fatrops_tuning_options_reach_it_and_are_checked() -> None:
         for bad in (0.0, -1.0, float("nan")):
             with pytest.raises(ValueError, match=field):
                 SolverOptions(**{field: bad})
+
+
+def test_a_lazy_back_end_is_built_at_the_first_solve_and_solves_alike(mpc) -> None:
+    state = np.concatenate([W0, IDENTITY, I0])
+    request = PlanRequest(0, state, [0, 1, 0], np.tile(IDENTITY, (51, 1)), MpcWeights())
+    with InertialMorphingMpc(MODEL, mpc.settings, lazy_backend=True) as lazy:
+        assert lazy.backend is None and lazy.deadline_misses == 0
+        lazy.close()  # nothing to stop yet
+        plan = lazy.solve(request)
+        assert lazy.backend is not None
+    mpc.reset()
+    expected = mpc.solve(request)
+    np.testing.assert_array_equal(plan.result.z, expected.result.z)

@@ -88,14 +88,17 @@ def _run_library(
     estimator: bool | None = None,
     estimation: EstimatorConfig | None = None,
 ) -> VariantRun:
-    from splitter_bringup.run.library import controller_config, run_closed_loop
+    from splitter_bringup.run.library import (
+        controller_config,
+        library_controller,
+        run_closed_loop,
+    )
     from splitter_model.model import RobotModel
-    from splitter_mpc.core.controller import MorphingController
 
     started = time.monotonic()
     model = RobotModel()
     config = controller_config(scenario, mpc, knows_robot=estimator)
-    with MorphingController(model, config) as controller:
+    with library_controller(model, config) as controller:
         flying = time.monotonic()
         series = run_closed_loop(
             scenario,

@@ -54,7 +54,7 @@ from splitter_mpc.core.estimator import EstimatorConfig, FlightEstimate
 from splitter_mpc.core.estimator_tick import EstimatorTick, GyroSample, JointReading
 from splitter_mpc.core.gait_sensing import ImuReading
 from splitter_mpc.core.gait_tick import GaitTick, gait_settings_from_parameters
-from splitter_mpc.core.mpc import MpcSettings, settings_for_weights
+from splitter_mpc.core.mpc import InertialMorphingMpc, MpcSettings, settings_for_weights
 from splitter_mpc.core.mpc_tick import MpcTick, MpcTickSettings
 from splitter_mpc.core.ocp import MpcWeights
 from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
@@ -122,6 +122,17 @@ def controller_config(
     )
 
 
+def library_controller(model: RobotModel, config: ControllerConfig) -> MorphingController:
+    """The controller a library run flies with ``config``.
+
+    A disabled one (an open-loop variant: nothing can enable it during a library
+    run) never solves, so its MPC builds its back-end (the solver worker, ~1 s) only
+    at a first solve, which does not come. Close it (or use it in ``with``).
+    """
+    mpc = InertialMorphingMpc(model, config.mpc, lazy_backend=not config.enabled)
+    return MorphingController(model, config, mpc)
+
+
 def run_closed_loop(
     scenario: Scenario,
     progress: ProgressCallback | None = None,
@@ -155,7 +166,7 @@ def run_closed_loop(
     estimated = flies_on_estimates(scenario) if estimator is None else bool(estimator)
     if controller is None:
         config = controller_config(scenario, mpc, knows_robot=estimated)
-        with MorphingController(model, config) as own:
+        with library_controller(model, config) as own:
             return run_closed_loop(
                 scenario,
                 progress,

@@ -306,19 +306,20 @@ class InertialMorphingMpc(Closable):
     the object as a context manager) to stop the worker.
     """
 
-    def __init__(self, model: RobotModel, settings: MpcSettings | None = None) -> None:
+    def __init__(
+        self,
+        model: RobotModel,
+        settings: MpcSettings | None = None,
+        *,
+        lazy_backend: bool = False,
+    ) -> None:
         self.model = model
         self.settings = settings or MpcSettings()
         s = self.settings
         self.limits, self.ocp = morphing_problem(model, s)
-        if s.options.isolated:
-            self.backend = SolverWorker(
-                partial(build_backend, model, s),
-                s.options.max_time_s,
-                wait_for_start=s.options.wait_for_worker_start,
-            )
-        else:
-            self.backend = make_backend(s.solver, self.ocp, s.options)
+        # lazy_backend: built at the first solve, for a controller that may never solve
+        # (a disabled one in the library loop: the worker's start-up is ~1 s)
+        self.backend = None if lazy_backend else self._build_backend()
         self._dynamics = dynamics_function(
             s.dt_s, self.ocp.inertia_map, s.integrator, self.ocp.state
         ).expand()
@@ -393,6 +394,16 @@ class InertialMorphingMpc(Closable):
             inertia_max_kg_m2=base.inertia(hi**2),
         )
 
+    def _build_backend(self):
+        s = self.settings
+        if s.options.isolated:
+            return SolverWorker(
+                partial(build_backend, self.model, s),
+                s.options.max_time_s,
+                wait_for_start=s.options.wait_for_worker_start,
+            )
+        return make_backend(s.solver, self.ocp, s.options)
+
     @property
     def horizon(self) -> int:
         return self.settings.horizon
@@ -455,6 +466,8 @@ class InertialMorphingMpc(Closable):
             _LOG.warning("MPC problem at t = %d ns has non-finite %s: not solved", t_ns, bad)
             result = failed_result(data, STATUS_NON_FINITE_DATA, 0.0)
         else:
+            if self.backend is None:
+                self.backend = self._build_backend()
             result = self.backend.solve(data)
         xs, _ = self.ocp.split(result.z)
         layout = self.ocp.state
