@@ -179,9 +179,10 @@ def _box_least_squares(
 
     All 26 bounded active sets are solved at once (the allocator projects every
     tick); the first feasible candidate of least distance, in ``_ACTIVE_SETS``
-    order, wins. Raises ``ValueError`` if no candidate is finite, which cannot
-    happen for a finite ``b`` (the vertices are finite and their scaled distances
-    cannot overflow).
+    order, wins, and its free radii are solved again with ``lstsq`` (so the answer
+    is, bit for bit, that of solving each active set with ``lstsq``). Raises
+    ``ValueError`` if no candidate is finite, which cannot happen for a finite
+    ``b`` (the vertices are finite and their scaled distances cannot overflow).
     """
     slack = 1e-12 * np.maximum(1.0, np.abs(hi))
     scale = max(1.0, float(np.max(np.abs(b))))
@@ -209,4 +210,15 @@ def _box_least_squares(
         usable = feasible & np.isfinite(cost)
     if not np.any(usable):
         raise ValueError(f"no finite projection of the requested inertia {b.tolist()}")
-    return candidates[int(np.argmin(np.where(usable, cost, np.inf)))].copy()
+    best = int(np.argmin(np.where(usable, cost, np.inf)))
+    free = _FREE[best]
+    s = bound[best].astype(float)
+    if free.any():  # the winner's free radii solved as lstsq does (the same bits as before)
+        fixed = ~free
+        with np.errstate(over="ignore", invalid="ignore"):
+            s_free = np.linalg.lstsq(a[:, free], b - a[:, fixed] @ s[fixed], rcond=None)[0]
+        if np.all(np.isfinite(s_free)):
+            s[free] = np.clip(s_free, lo[free], hi[free])
+        else:
+            s = candidates[best].copy()
+    return s
