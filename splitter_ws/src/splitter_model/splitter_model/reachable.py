@@ -181,9 +181,10 @@ def _box_least_squares(
     tick); the first feasible candidate of least distance, in ``_ACTIVE_SETS``
     order, wins, and its free radii are solved again with ``lstsq``: the answer is
     that of solving each active set with ``lstsq``, bit for bit, unless two active
-    sets tie to within rounding (a request on the edge between two faces; the MPC's
-    lunar plans ask 59 of 1671 such, I_yy = I_zz): then the other one may win, ~1e-9
-    m^2 away. Raises
+    sets tie to within the rounding of their solves (a request on the edge between
+    two faces; 59 of the 1671 requests of a lunar MPC flight): then the other one
+    may win, ~2e-9 m^2 away and at most 1.2e-8 kg m^2 (5e-11 of the request)
+    farther. Raises
     ``ValueError`` if no candidate is finite, which cannot happen for a finite
     ``b`` (the vertices are finite and their scaled distances cannot overflow).
     """
