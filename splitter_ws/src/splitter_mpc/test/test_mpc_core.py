@@ -24,7 +24,7 @@ from splitter_mpc.core.mpc import (
     settings_for_weights,
 )
 from splitter_mpc.core.ocp import NU, MpcWeights, StateLayout, build_ocp, dynamics_function
-from splitter_mpc.core.solvers import OBJECTIVE_SCALE_MIN, SolverOptions
+from splitter_mpc.core.solvers import OBJECTIVE_SCALE_MIN, SolverOptions, fatrop_structure
 
 MODEL = RobotModel()
 DT = 0.01  # [s]
@@ -378,17 +378,7 @@ def test_fatrops_tuning_options_reach_it_and_are_checked() -> None:
         data, ocp = mpc.problem(request), mpc.ocp
     defaults = SolverOptions()
     nlp = {"x": ocp.z, "p": ocp.p, "f": ocp.objective, "g": ocp.g}
-    common = {
-        "structure_detection": "manual",
-        "nx": ocp.nx,
-        "nu": ocp.nu,
-        "ng": ocp.ng,
-        "N": ocp.horizon,
-        "equality": ocp.equality,
-        "expand": True,
-        "print_time": False,
-        "fatrop.print_level": 0,
-    }
+    common = {**fatrop_structure(ocp), "expand": True, "print_time": False, "fatrop.print_level": 0}
     tuned = {
         "fatrop.mu_init": defaults.fatrop_mu_init,
         "fatrop.bound_push": defaults.fatrop_bound_push,

@@ -207,6 +207,18 @@ def _fg_function(ocp: MorphingOcp) -> ca.Function:
     )
 
 
+def fatrop_structure(ocp: MorphingOcp) -> dict:
+    """fatrop's options that describe the OCP's stages (its manual structure detection)."""
+    return {
+        "structure_detection": "manual",
+        "nx": ocp.nx,
+        "nu": ocp.nu,
+        "ng": ocp.ng,
+        "N": ocp.horizon,
+        "equality": ocp.equality,
+    }
+
+
 class NlpBackend:
     """IPOPT or fatrop through ``nlpsol`` (compiled derivative code when possible)."""
 
@@ -236,12 +248,7 @@ class NlpBackend:
         else:
             opts = {
                 **common,
-                "structure_detection": "manual",
-                "nx": ocp.nx,
-                "nu": ocp.nu,
-                "ng": ocp.ng,
-                "N": ocp.horizon,
-                "equality": ocp.equality,
+                **fatrop_structure(ocp),
                 "fatrop.print_level": 0,
                 "fatrop.max_iter": options.max_iter * 5,
                 "fatrop.tol": options.tol,
