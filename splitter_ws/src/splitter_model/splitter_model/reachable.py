@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,6 +157,9 @@ def reachable_set(model: RobotModel) -> ReachableSet:
 _ACTIVE_SETS = np.array(list(itertools.product((0, 1, 2), repeat=3))[1:])
 _FREE = _ACTIVE_SETS == 0
 _AT_LOW = _ACTIVE_SETS == 1
+# [-] relative: how near feasible and how near the least cost an active set of the
+# all-at-once pass must be to be solved the plain way (the two differ by ~1e-8 at most)
+_CONTENDER_MARGIN = 1e-6
 
 
 @functools.lru_cache(maxsize=16)
@@ -177,16 +182,15 @@ def _box_least_squares(
 ) -> NDArray[np.float64]:
     """argmin |a s - b| over lo <= s <= hi, invertible 3x3 ``a``: exact active-set enumeration.
 
-    All 26 bounded active sets are solved at once (the allocator projects every
-    tick); the first feasible candidate of least distance, in ``_ACTIVE_SETS``
-    order, wins, and its free radii are solved again with ``lstsq``: the answer is
-    that of solving each active set with ``lstsq``, bit for bit, unless two active
-    sets tie to within the rounding of their solves (a request on the edge between
-    two faces; 59 of the 1671 requests of a lunar MPC flight): then the other one
-    may win, ~2e-9 m^2 away and at most 1.2e-8 kg m^2 (5e-11 of the request)
-    farther. Raises
-    ``ValueError`` if no candidate is finite, which cannot happen for a finite
-    ``b`` (the vertices are finite and their scaled distances cannot overflow).
+    The answer is that of the plain enumeration (each active set's free radii solved
+    with ``lstsq``, checked, costed; the first of least cost wins), bit for bit; but
+    all 26 bounded active sets are first solved at once (pseudo-inverses built
+    once), and only the contenders (near feasible, cost near the least) are then
+    solved the plain way: the allocator projects every tick. Contenders are kept
+    with a margin (:data:`_CONTENDER_MARGIN`) far above the two ways' differences
+    (~2e-9 m^2 where two faces tie). Raises ``ValueError`` if no candidate is
+    finite, which cannot happen for a finite ``b`` (the vertices are finite and
+    their scaled distances cannot overflow).
     """
     slack = 1e-12 * np.maximum(1.0, np.abs(hi))
     scale = max(1.0, float(np.max(np.abs(b))))
@@ -203,26 +207,55 @@ def _box_least_squares(
         bound = np.where(_AT_LOW, lo, hi)  # (26, 3) the bounded entries' values
         rhs = b - np.where(_FREE, 0.0, bound) @ a.T
         s_free = np.einsum("kij,kj->ki", _free_solvers(np.ascontiguousarray(a).tobytes()), rhs)
-        feasible = np.all(
-            ~_FREE | (np.isfinite(s_free) & (s_free >= lo - slack) & (s_free <= hi + slack)),
+        margin = _CONTENDER_MARGIN * np.maximum(1.0, np.abs(hi))
+        near_feasible = np.all(
+            ~_FREE | (np.isfinite(s_free) & (s_free >= lo - margin) & (s_free <= hi + margin)),
             axis=1,
         )
-        candidates = np.where(_FREE, np.clip(s_free, lo, hi), bound)
-        # (|a s - b|^2 - |b|^2) / scale: same order as the distance, |a s| is bounded
-        achieved = candidates @ a.T
+        achieved = np.where(_FREE, np.clip(s_free, lo, hi), bound) @ a.T
         cost = np.einsum("ki,ki->k", achieved, achieved) / scale - 2.0 * achieved @ b_scaled
-        usable = feasible & np.isfinite(cost)
-    if not np.any(usable):
-        raise ValueError(f"no finite projection of the requested inertia {b.tolist()}")
-    best = int(np.argmin(np.where(usable, cost, np.inf)))
-    free = _FREE[best]
-    s = bound[best].astype(float)
-    if free.any():  # the winner's free radii solved as lstsq does
-        fixed = ~free
-        with np.errstate(over="ignore", invalid="ignore"):
-            s_free = np.linalg.lstsq(a[:, free], b - a[:, fixed] @ s[fixed], rcond=None)[0]
-        if np.all(np.isfinite(s_free)):
-            s[free] = np.clip(s_free, lo[free], hi[free])
+        cost = np.where(near_feasible & np.isfinite(cost), cost, np.inf)
+        least = float(np.min(cost))
+        if math.isfinite(least):
+            contenders = np.flatnonzero(cost <= least + _CONTENDER_MARGIN * max(1.0, abs(least)))
         else:
-            s = candidates[best].copy()
-    return s
+            contenders = np.arange(len(_ACTIVE_SETS))
+        best = _plain_enumeration(a, b, lo, hi, contenders)
+        if best is None and len(contenders) < len(_ACTIVE_SETS):
+            best = _plain_enumeration(a, b, lo, hi, range(len(_ACTIVE_SETS)))
+    if best is None:
+        raise ValueError(f"no finite projection of the requested inertia {b.tolist()}")
+    return best
+
+
+def _plain_enumeration(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    active_sets: Iterable[int],
+) -> NDArray[np.float64] | None:
+    """The first feasible of least cost among ``active_sets`` (indices), each solved alone."""
+    slack = 1e-12 * np.maximum(1.0, np.abs(hi))
+    scale = max(1.0, float(np.max(np.abs(b))))
+    b_scaled = b / scale
+    best, best_cost = None, math.inf
+    for k in active_sets:
+        free = _FREE[k]
+        s = np.where(_AT_LOW[k], lo, hi).astype(float)
+        if free.any():
+            fixed = ~free
+            s_free = np.linalg.lstsq(a[:, free], b - a[:, fixed] @ s[fixed], rcond=None)[0]
+            if (
+                not np.all(np.isfinite(s_free))
+                or np.any(s_free < lo[free] - slack[free])
+                or np.any(s_free > hi[free] + slack[free])
+            ):
+                continue
+            s[free] = np.clip(s_free, lo[free], hi[free])
+        # (|a s - b|^2 - |b|^2) / scale: same order as the distance, |a s| is bounded
+        achieved = a @ s
+        cost = float(achieved @ achieved / scale - 2.0 * b_scaled @ achieved)
+        if math.isfinite(cost) and (best is None or cost < best_cost):
+            best, best_cost = s, cost
+    return best

@@ -122,10 +122,10 @@ def _plain_projection(b: np.ndarray) -> np.ndarray:
 
 
 def test_the_projection_is_the_plain_enumeration_bit_for_bit() -> None:
-    """All active sets at once (the allocator's every tick) gives the same bits.
-
-    (Random requests: none sits within rounding of the edge between two faces.)
-    """
+    """All active sets at once (the allocator's every tick) gives the same bits,
+    also where two faces tie (the first request: a lunar MPC plan's, I_yy = I_zz)."""
+    tied = np.array([1.016951632033563, 162.07187522935556, 162.94507872552538])
+    np.testing.assert_array_equal(REACHABLE.project(tied), _plain_projection(tied))
     rng = np.random.default_rng(11)
     for k in range(3000):
         b = rng.normal(0.0, 1.0, 3) * 10.0 ** rng.uniform(-2.0, 4.0 if k % 7 else 12.0)
