@@ -299,10 +299,10 @@ class JointHealthMonitor:
         commands = self._commands
         while commands and commands[-1][0] >= t_ns:  # a repeated stamp replaces
             commands.pop()
-        v = v.reshape(N_JOINTS).copy()
+        q, v = q.copy(), v.reshape(N_JOINTS).copy()  # never changed once kept
         ahead = q + v * self.config.command_extrapolation_s
         low, high = (np.minimum(q, ahead), np.maximum(q, ahead)) if v.any() else (q, q)
-        commands.append((int(t_ns), q.copy(), v, low.copy(), high.copy()))
+        commands.append((int(t_ns), q, v, low, high))
         for servo in self._servos if self.enabled else ():
             servo.on_command(int(t_ns), commands[-1][1], commands[-1][2])
         horizon = int(t_ns) - self._keep_ns()
