@@ -142,7 +142,11 @@ def limb_joint_torques(
     ``tip_forces_n``: (8, 3) the force each limb exerts on its lumped mass, base frame [N].
     """
     forces = np.asarray(tip_forces_n, dtype=float).reshape(N_LIMBS, 3)
-    return np.einsum("lij,li->lj", limb_jacobians(model, joint_positions), forces).ravel()
+    # J^T F per limb as a batched matmul: the same sums, in the same order, as each
+    # limb's J.T @ F (einsum sums otherwise: last-bit differences in the efforts the
+    # flight estimator reads)
+    jacobians_t = limb_jacobians(model, joint_positions).transpose(0, 2, 1)
+    return np.matmul(jacobians_t, forces[:, :, None]).ravel()
 
 
 def limb_inverse_kinematics(

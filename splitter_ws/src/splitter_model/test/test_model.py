@@ -136,10 +136,13 @@ def test_all_limb_jacobians_at_once_equal_each_limbs() -> None:
     rng = np.random.default_rng(7)
     q = rng.uniform(-2.5, 2.5, 25)
     at_once = limb_jacobians(MODEL, q)
+    forces = rng.normal(0.0, 5.0, (8, 3))
+    torques = limb_joint_torques(MODEL, q, forces)
     for limb in range(8):
-        np.testing.assert_allclose(
-            at_once[limb], limb_jacobian(MODEL, limb, q[limb_joints(limb)]), rtol=0, atol=1e-14
-        )
+        jacobian = limb_jacobian(MODEL, limb, q[limb_joints(limb)])
+        np.testing.assert_array_equal(at_once[limb], jacobian)
+        # bit for bit each limb's J^T F: the flight estimator reads these efforts
+        np.testing.assert_array_equal(torques[limb_joints(limb)], jacobian.T @ forces[limb])
 
 
 def test_joint_torques_do_the_work_of_the_tip_force() -> None:
