@@ -13,6 +13,7 @@ import yaml
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_model.rotations import quaternion_to_matrix
 from splitter_mpc.core.gait import (
+    LANDING_RATE_MAX_RAD_S,
     ANTIPARALLEL_TOLERANCE,
     GaitConfig,
     GaitOutput,
@@ -876,7 +877,9 @@ def test_a_timed_landing_meets_the_ground_with_the_tether_level(seed: int) -> No
     inertia = np.array([0.5, 141.4, 150.0])  # [kg m^2] the belly axis the largest
     w = rng.uniform(-0.2, 0.2, 3) + np.array([0.0, 0.0, 0.45])
     touchdown_s = float(rng.uniform(1.5, 4.5))
-    q_ref, w_ref = timed_landing_reference(q, w, inertia, touchdown_s, tilt_tolerance_deg=0.0)
+    q_ref, w_ref = timed_landing_reference(
+        q, w, inertia, touchdown_s, tilt_tolerance_deg=0.0, rate_max_rad_s=math.inf
+    )
     momentum = quaternion_to_matrix(q) @ (inertia * w)
     h = momentum / np.linalg.norm(momentum)
     at_touchdown = quaternion_to_matrix(propagate_attitude(q_ref, w_ref, touchdown_s))
@@ -887,6 +890,32 @@ def test_a_timed_landing_meets_the_ground_with_the_tether_level(seed: int) -> No
     assert abs(w_ref[2] - rate_now) <= math.pi / touchdown_s + 1e-9
 
 
+def test_a_timed_landing_spins_up_no_faster_than_the_cap() -> None:
+    """A slow spin (a second flight's) is timed only by a spin no faster than the cap,
+    or not at all; without the cap the nearest timing spins it up beyond it."""
+    rng = np.random.default_rng(7)
+    inertia = np.array([0.5, 141.4, 150.0])  # [kg m^2]
+    fastest_uncapped, timed, untimed = 0.0, 0, 0
+    for _ in range(200):
+        q = rng.standard_normal(4)
+        q /= np.linalg.norm(q)
+        spin = np.array([0.0, 0.0, rng.uniform(0.05, 0.45)])  # [rad/s] about the belly
+        touchdown_s = float(rng.uniform(2.0, 4.5))
+        plan = timed_landing_reference(q, spin, inertia, touchdown_s)
+        free = timed_landing_reference(q, spin, inertia, touchdown_s, rate_max_rad_s=math.inf)
+        if free is None:  # nothing to time, capped or not
+            assert plan is None
+            continue
+        fastest_uncapped = max(fastest_uncapped, float(free[1][2]))
+        if plan is None:
+            untimed += 1
+            continue
+        assert 0.0 < plan[1][2] <= LANDING_RATE_MAX_RAD_S + 1e-12
+        timed += 1
+    assert fastest_uncapped > 2.0 * LANDING_RATE_MAX_RAD_S
+    assert timed > 20 and untimed > 20
+
+
 def test_nothing_to_time_without_a_tilted_momentum_or_time() -> None:
     inertia = np.array([0.5, 141.4, 150.0])
     spin = np.array([0.0, 0.0, 0.45])  # about the vertical: level at every phase
@@ -895,7 +924,9 @@ def test_nothing_to_time_without_a_tilted_momentum_or_time() -> None:
     tilted = axis_angle([1.0, 0.0, 0.0], 0.3)
     slightly = axis_angle([1.0, 0.0, 0.0], math.radians(2.9))  # within the 3 deg tolerance
     assert timed_landing_reference(slightly, spin, inertia, 3.0) is None
-    assert timed_landing_reference(slightly, spin, inertia, 3.0, tilt_tolerance_deg=2.8)
+    assert timed_landing_reference(
+        slightly, spin, inertia, 3.0, tilt_tolerance_deg=2.8, rate_max_rad_s=math.inf
+    )
     assert timed_landing_reference(tilted, spin, inertia, 0.0) is None
     assert timed_landing_reference(tilted, spin, inertia, math.inf) is None
-    assert timed_landing_reference(tilted, spin, inertia, 3.0) is not None
+    assert timed_landing_reference(tilted, spin, inertia, 3.0, rate_max_rad_s=math.inf)

@@ -93,6 +93,11 @@ LANDING_SPIN_AXIS = (0.0, 0.0, 1.0)  # body z, the belly normal: the spin a land
 # phase: 5.6 m x sin 3 deg = 0.29 m between the hemis, within the legs' 0.4 m stroke, so
 # the landing is not timed (timing it costs spin)
 LANDING_TILT_TOLERANCE_DEG = 3.0
+# [rad/s] a timed landing may slow the spin at will but spin it up no faster than this:
+# lunar_jumping's launch spin (0.46 rad/s), which the legs are shown to land. Reeling in
+# to advance the phase of a slow spin (a second flight's 0.1 rad/s) otherwise asks for
+# 1 rad/s and more, and the reel-in pumps the nutation of a momentum off the belly.
+LANDING_RATE_MAX_RAD_S = 0.5
 AXIS_EPS_RAD_S = 1e-9  # [rad/s] a w_ref shorter than this has no axis (as in the MPC's OCP)
 MOMENTUM_EPS_KG_M2_S = 1e-9  # [kg m^2/s] an angular momentum shorter than this has no direction
 # [-] |a + b| of unit vectors below which they count as opposite: sqrt(float64 eps), the
@@ -280,6 +285,7 @@ def timed_landing_reference(
     *,
     spin_axis_body: ArrayLike = LANDING_SPIN_AXIS,
     tilt_tolerance_deg: float = LANDING_TILT_TOLERANCE_DEG,
+    rate_max_rad_s: float = LANDING_RATE_MAX_RAD_S,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """(attitude reference now, body rate reference) that meets the ground with the tether level.
 
@@ -292,10 +298,12 @@ def timed_landing_reference(
     ``H``, and spins about ``e`` at the rate ``w*`` that turns the tether onto ``+-u``
     in ``touchdown_in_s`` [s]: ``w* = (k pi - phi0) / T``, the ``k`` whose ``w*`` is
     nearest the spin the momentum has about ``e`` now (``|H| / e' I e``; the tether
-    length sets it, so the MPC needs the least morphing). None when there is nothing
-    to time: no momentum, no time left, ``H`` within ``tilt_tolerance_deg`` of the
-    vertical (the tether is then as level at every phase), or the spin it has would
-    meet the ground with the tether within that tolerance anyway (timing costs spin).
+    length sets it, so the MPC needs the least morphing) and no faster than
+    ``max(rate_max_rad_s, that spin)``. None when there is nothing to time: no
+    momentum, no time left, ``H`` within ``tilt_tolerance_deg`` of the vertical (the
+    tether is then as level at every phase), the spin it has would meet the ground
+    with the tether within that tolerance anyway (timing costs spin), or only a faster
+    spin than that would time it.
     """
     q = _quaternion(orientation_wxyz, "orientation_wxyz")
     w = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
@@ -322,7 +330,11 @@ def timed_landing_reference(
         return None
     k = round((rate_now * touchdown_in_s + phi0) / math.pi)
     candidates = [(j * math.pi - phi0) / touchdown_in_s for j in (k - 1, k, k + 1)]
-    rate = min((c for c in candidates if c > 0.0), key=lambda c: (abs(c - rate_now), c))
+    fastest = max(rate_max_rad_s, rate_now)
+    allowed = [c for c in candidates if 0.0 < c <= fastest]
+    if not allowed:
+        return None
+    rate = min(allowed, key=lambda c: (abs(c - rate_now), c))
     return aligned, axis * rate
 
 
