@@ -100,3 +100,27 @@ def test_the_legs_cone_reaches_the_simulator_in_both_backends(tmp_path: Path) ->
     assert sim_config(scenario).leg_cone_half_angle_deg == 45.0
     assert simulator_parameters(scenario, False, 1.0)["leg_cone_half_angle_deg"] == 45.0
     assert load_scenario("lunar_jumping").leg_cone_half_angle_deg == 60.0
+
+
+@pytest.mark.parametrize("stiffness", ["-1", "2e6", "nan", "stiff"])
+def test_a_legs_posture_out_of_range_names_its_field(tmp_path: Path, stiffness: str) -> None:
+    path = tmp_path / "posture.yaml"
+    path.write_text(f"name: p\nduration_s: 1.0\nleg_posture_stiffness_n_m: {stiffness}\n")
+    with pytest.raises(ScenarioError, match="leg_posture_stiffness_n_m"):
+        load_scenario(path)
+
+
+def test_the_legs_posture_reaches_the_simulator_in_both_backends(tmp_path: Path) -> None:
+    """Off unless a scenario asks (splitter_sim.core.legs "Ride height")."""
+    from splitter_bringup.scenario.graph_config import simulator_parameters
+    from splitter_bringup.scenario.simulation import sim_config
+
+    path = tmp_path / "posture.yaml"
+    path.write_text(
+        "name: p\nduration_s: 1.0\ncompliant_legs: true\nleg_posture_stiffness_n_m: 300\n"
+    )
+    scenario = load_scenario(path)
+    assert sim_config(scenario).legs.posture_stiffness_n_m == 300.0
+    assert simulator_parameters(scenario, False, 1.0)["leg_posture_stiffness_n_m"] == 300.0
+    assert load_scenario("lunar_jumping").leg_posture_stiffness_n_m == 0.0
+    assert sim_config(load_scenario("lunar_jumping")).legs.posture_stiffness_n_m == 0.0

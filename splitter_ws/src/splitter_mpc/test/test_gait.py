@@ -13,8 +13,8 @@ import yaml
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
 from splitter_model.rotations import quaternion_to_matrix
 from splitter_mpc.core.gait import (
-    LANDING_RATE_MAX_RAD_S,
     ANTIPARALLEL_TOLERANCE,
+    LANDING_RATE_MAX_RAD_S,
     GaitConfig,
     GaitOutput,
     GaitPhase,

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import itertools
 import math
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from splitter_sim.core.legs import (
+    LANDING_SPEED_M_S,
     LegImpedance,
     foot_hold_force,
+    leg_normal_force,
     leg_stance_force,
     slipped_anchor,
 )
@@ -43,7 +47,68 @@ SETTINGS = settings(max_examples=300, deadline=None)
 
 
 def test_the_simulator_defaults_are_these_legs() -> None:
-    assert SimConfig().legs == LEGS
+    """The ride posture off (its stiffness 0), its other settings given."""
+    config = SimConfig()
+    assert config.legs == replace(
+        LEGS,
+        posture_stiffness_n_m=0.0,
+        posture_damping_n_s_m=60.0,
+        posture_weight_n=9.0 * config.gravity_m_s2,
+        ride_compression_m=0.4 - 0.2,
+        crouch_compression_m=0.4 - 0.02,
+    )
+
+
+# --- the ride posture (module docstring "Ride height") ---------------------------------------
+POSTURE_N_M = 300.0  # [N/m] the posture measured (README "Ride height")
+LUNAR = SimConfig(gravity_m_s2=1.62, leg_posture_stiffness_n_m=POSTURE_N_M).legs  # W 14.58 N
+
+
+def test_a_standing_hemi_is_held_at_the_ride_height_and_a_crouching_one_lowered() -> None:
+    w, k_p = LUNAR.posture_weight_n, LUNAR.posture_stiffness_n_m
+    assert w == pytest.approx(14.58)
+    # Standing: the weight at the ride compression, a spring about it, a damper.
+    assert leg_normal_force(0.2, 0.0, LUNAR) == pytest.approx(w)
+    assert leg_normal_force(0.25, 0.0, LUNAR) == pytest.approx(w + k_p * 0.05)
+    assert leg_normal_force(0.18, 0.0, LUNAR) == pytest.approx(w - k_p * 0.02)
+    assert leg_normal_force(0.2, 0.1, LUNAR) == pytest.approx(w - 6.0)
+    assert leg_normal_force(0.2, -0.3, LUNAR) == pytest.approx(w + 18.0)
+    # Crouching: the weight at the crouch compression; above it the legs carry half the
+    # weight (the hemi sinks at g / 2), never nothing.
+    assert leg_normal_force(0.38, 0.0, LUNAR, crouch=True) == pytest.approx(w)
+    assert leg_normal_force(0.2, 0.0, LUNAR, crouch=True) == pytest.approx(w / 2.0)
+    assert leg_normal_force(0.2, 0.3, LUNAR, crouch=True) == pytest.approx(w / 2.0)
+
+
+def test_a_touchdown_keeps_the_spring_damper_stop() -> None:
+    """Coming down faster than a crouch, the legs stop the hemi at least as hard as without
+    the posture, and exactly so from the landing speed's upper end; continuously between."""
+    bare = replace(LUNAR, posture_stiffness_n_m=0.0)
+    for compression in (0.01, 0.1, 0.3):
+        for down in (LANDING_SPEED_M_S[1], 1.5, 3.6):
+            with_posture = leg_normal_force(compression, -down, LUNAR)
+            without = leg_normal_force(compression, -down, bare)
+            assert with_posture == pytest.approx(max(without, with_posture))
+            assert with_posture >= without - 1e-12
+    assert leg_normal_force(0.01, -3.6, LUNAR) == LUNAR.force_max_n
+    speeds = [LANDING_SPEED_M_S[0] + i * 1e-4 for i in range(-5, 6006)]
+    forces = [leg_normal_force(0.3, -v, LUNAR) for v in speeds]
+    assert max(abs(b - a) for a, b in itertools.pairwise(forces)) < 0.1  # [N]
+
+
+def test_without_a_posture_the_law_is_the_spring_damper() -> None:
+    bare = replace(LUNAR, posture_stiffness_n_m=0.0)
+    assert leg_normal_force(0.3, -0.5, bare) == pytest.approx(40.0 * 0.3 + 200.0 * 0.5)
+    assert leg_normal_force(0.3, 0.0, bare, crouch=True) == pytest.approx(12.0)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("posture_weight_n", math.nan), ("crouch_compression_m", -0.1), ("ride_compression_m", -1.0)],
+)
+def test_an_invalid_posture_names_the_field(field: str, value: float) -> None:
+    with pytest.raises(ValueError, match=field):
+        replace(LUNAR, **{field: value})
 
 
 @pytest.mark.parametrize("compression_m", [0.0, -1e-12, -0.05, -3.0])

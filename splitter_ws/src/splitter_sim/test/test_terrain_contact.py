@@ -24,6 +24,7 @@ MODEL = RobotModel()
 G_MOON = 1.62  # [m/s^2]
 DT = 0.005  # [s]
 STEP_FLAT = (1.5, 4.0, -1.0, 1.0, 0.2)  # [m] under hemi a's side
+POSTURE_N_M = 300.0  # [N/m] the legs' ride posture measured (README "Ride height")
 
 
 def _standing(config: SimConfig, lift_m: float, compiled: bool = True) -> Simulator:
@@ -182,3 +183,75 @@ def test_planted_feet_stop_a_slide_within_the_coulomb_distance(slope_deg: float)
 def test_without_planted_feet_a_downhill_slide_never_stops() -> None:
     states = _slide(8.0, 0.0)
     assert float(np.linalg.norm(states[-1].velocity_m_s[:2])) > 0.05  # [m/s] still creeping
+
+
+def _slide_towards_a_step(posture_n_m: float, step_m: float = 0.12) -> list:
+    """A robot crouched on its legs (lowest mass 3.3 cm up, the spring's rest) sliding at
+    2 m/s along +x; a ``step_m`` step's wall 1 m ahead of hemi a's lowest mass."""
+    config = SimConfig(
+        gravity_m_s2=G_MOON,
+        compliant_legs=True,
+        leg_posture_stiffness_n_m=posture_n_m,
+        ground_steps_m=(3.8, 20.0, -5.0, 5.0, step_m),
+    )
+    crouched = _standing(config, 0.033)
+    state = crouched.state()
+    sim = Simulator(
+        MODEL,
+        config,
+        InitialState(position_m=tuple(state.position_m), velocity_m_s=(2.0, 0.0, 0.0)),
+    )
+    return _run(sim, 3.0)
+
+
+def test_a_sliding_hemi_rides_over_a_step_its_crouch_would_strike() -> None:
+    """The ride posture (splitter_sim.core.legs "Ride height") stands a sliding hemi up, so
+    its lowest mass clears a 12 cm step; crouched (no posture) a limb tip strikes it."""
+    riding = _slide_towards_a_step(POSTURE_N_M)
+    crouched = _slide_towards_a_step(0.0)
+    peak_riding = max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in riding)
+    peak_crouched = max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in crouched)
+    assert peak_riding <= 190.0 + 1e-9  # [N] only the legs: the cap
+    assert peak_crouched > 196.133  # [N] a tip struck the wall: over the limbs' limit
+    lowest_over_step = min(
+        float(s.mass_positions_world_m[:5, 2].min())
+        for s in riding
+        if float(s.mass_positions_world_m[:5, 0].max()) > 3.8
+    )
+    assert lowest_over_step > 0.12  # [m] hemi a's masses passed above the step's top
+    assert float(riding[-1].position_m[0]) > 1.0  # [m] and the robot slid on onto it
+
+
+def _jump_from_standing(posture_n_m: float, lift_m: float) -> tuple[list, float]:
+    """A lunar robot standing still on its legs (placed ``lift_m`` up), then commanded the
+    second jump's push (160 N forward, 320 N up, both hemis); its states and the push's
+    start [s]."""
+    config = SimConfig(
+        gravity_m_s2=G_MOON, compliant_legs=True, leg_posture_stiffness_n_m=posture_n_m
+    )
+    sim = _standing(config, lift_m)
+    _run(sim, 2.0)  # settles at its standing height
+    sim.command_jump_force((160.0, 0.0, 320.0), "auto")
+    states = _run(sim, 1.5)
+    pushing = [i for i, s in enumerate(states) if float(np.abs(s.thrust_force_n).sum()) > 0.0]
+    return states, pushing[0] * DT
+
+
+def test_a_standing_robot_crouches_then_pushes_the_whole_stroke() -> None:
+    """The legs stand the robot at the ride height, crouch (feet loaded) before the push
+    and push from the crouch: at least the lift-off speed of a crouched start (the
+    sinking adds a little, a counter-movement), not that of a push from standing."""
+    states, start_s = _jump_from_standing(POSTURE_N_M, 0.2)
+    lowest = [float(s.mass_positions_world_m[:, 2].min()) for s in states]
+    assert 0.35 < start_s < 1.0  # [s] the crouch before the push
+    at_start = round(start_s / DT)
+    assert lowest[0] == pytest.approx(0.2, abs=0.01)  # [m] stood at the ride height
+    assert lowest[at_start] < 0.03  # [m] and crouched before pushing
+    loaded = [float(np.linalg.norm(s.contact_force_n, axis=1).min()) for s in states[:at_start]]
+    assert min(loaded) > 5.0  # [N] each hemi's feet on the ground through the crouch
+    liftoff_vx = max(float(s.velocity_m_s[0]) for s in states)
+    # the crouched robot without a posture (its spring's rest, 3.3 cm up) pushes the same
+    crouched, crouched_start = _jump_from_standing(0.0, 0.033)
+    assert crouched_start == 0.0
+    crouched_vx = max(float(s.velocity_m_s[0]) for s in crouched)
+    assert crouched_vx <= liftoff_vx < 1.1 * crouched_vx

@@ -145,6 +145,9 @@ class Scenario:
     compliant_legs: bool = False  # stance legs under impedance control (splitter_sim.core.legs)
     # [deg] the legs' workspace cone: belly normal to ground normal (SimConfig's field)
     leg_cone_half_angle_deg: float = 60.0
+    # [N/m] the legs' ride posture (SimConfig's field; splitter_sim.core.legs "Ride
+    # height"): 0, off, the robot stands crouched
+    leg_posture_stiffness_n_m: float = 0.0
     # the ground (splitter_model.terrain): level z = 0 unless the scenario's ``ground``
     terrain: Terrain = FLAT
     friction_coefficient: float = 0.8  # [-] of the ground (SimConfig's field)
@@ -362,6 +365,16 @@ def _leg_cone(data: Mapping[str, Any]) -> float:
     return cone
 
 
+def _leg_posture(data: Mapping[str, Any]) -> float:
+    """``leg_posture_stiffness_n_m`` [N/m] in [0, 1e6] (SimConfig's range), default 0 (off)."""
+    stiffness = _finite(data, "leg_posture_stiffness_n_m", 0.0)
+    if not 0.0 <= stiffness <= 1e6:
+        raise ScenarioError(
+            f"leg_posture_stiffness_n_m: must be in [0, 1e6] N/m, got {stiffness!r}"
+        )
+    return stiffness
+
+
 def _finite(data: Mapping[str, Any], key: str, default: float) -> float:
     value = data.get(key, default)
     try:
@@ -405,6 +418,7 @@ SCENARIO_FIELDS = (
     "ground_contact",
     "compliant_legs",
     "leg_cone_half_angle_deg",
+    "leg_posture_stiffness_n_m",
     "ground",
     "initial",
     "controller",
@@ -603,6 +617,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         ground_contact=bool(d.get("ground_contact", False)),
         compliant_legs=bool(d.get("compliant_legs", False)),
         leg_cone_half_angle_deg=_leg_cone(d),
+        leg_posture_stiffness_n_m=_leg_posture(d),
         terrain=terrain,
         friction_coefficient=friction,
         faults=_faults(d.get("faults")),

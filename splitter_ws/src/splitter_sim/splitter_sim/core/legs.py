@@ -35,6 +35,21 @@ acts along it; the ground then takes the force only within its friction cone (th
 feet slip beyond: the force's part along the ground is cut to ``mu`` times its
 part along the normal).
 
+Ride height (posture). A weak spring alone leaves a hemi standing crouched, its lowest
+mass 3 cm above the ground; after a touchdown it slides on so (lunar friction brakes
+2 m/s over about 1.5 m), and any step higher than that in the slide is struck by a
+limb tip (measured: 637 N from a 5 cm step at 0.6 m/s). The stroke cannot brake the
+slide either: stopping the nominal 3.6 m/s touchdown within it takes 189 N of the
+190 N cap. So the legs stand the hemi at a ride height (``posture_stiffness`` > 0): the
+posture ``W + k_p (x - x_ride) - c_p v_n`` holds the nominal hemi's weight ``W`` at the
+ride compression ``x_ride`` (the lowest mass ``stroke - x_ride`` up). A hemi coming down
+faster than ``LANDING_SPEED_M_S`` (a touchdown) also gets the spring-damper's stop
+where that is stronger. Before a push the legs crouch (the simulator sets ``crouch``
+once a jump is commanded): the posture's set point moves to the crouch compression,
+the hemi sinks under its weight, the legs still carrying half of it
+(``CROUCH_LOAD_FRACTION``: 0.67 s for 0.18 m on the Moon, the feet kept loaded), and
+the push starts from there, over the stroke a crouched robot has.
+
 Posture about the tether axis. The two hemis stand on the tether axis, so forces at
 the hemi bodies alone would leave the robot free to roll about it (measured: a robot
 standing after a spinning touchdown rolled over in 1.5 s, its y limb tips caught by
@@ -49,6 +64,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+# [m/s] with a posture, the spring-damper's landing stop acts on a hemi coming down
+# faster than the first speed, wholly from the second (a touchdown; a crouch is slower)
+LANDING_SPEED_M_S = (0.5, 1.0)
+_LANDING_BLEND = LANDING_SPEED_M_S[1] - LANDING_SPEED_M_S[0]
+# [-] a crouching hemi's legs carry at least this share of its weight: it sinks at no
+# more than half of g (0.18 m in 0.67 s on the Moon) and its feet stay on the ground
+CROUCH_LOAD_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -65,6 +88,12 @@ class LegImpedance:
     roll_damping_nm_s_rad: float = 0.0  # [N m s/rad]
     hold_stiffness_n_m: float = 0.0  # [N/m] planted feet: spring to where they stand
     hold_damping_n_s_m: float = 0.0  # [N s/m] along the ground while planted (hip damper)
+    # Ride height while sliding (module docstring); posture_stiffness 0: off.
+    posture_stiffness_n_m: float = 0.0  # k_p [N/m]
+    posture_damping_n_s_m: float = 0.0  # c_p [N s/m]
+    posture_weight_n: float = 0.0  # W [N] the nominal hemi's weight the posture holds
+    ride_compression_m: float = 0.2  # x_ride [m]
+    crouch_compression_m: float = 0.38  # [m] where the legs crouch before a push
 
     def __post_init__(self) -> None:
         for name in (
@@ -76,6 +105,11 @@ class LegImpedance:
             "roll_damping_nm_s_rad",
             "hold_stiffness_n_m",
             "hold_damping_n_s_m",
+            "posture_stiffness_n_m",
+            "posture_damping_n_s_m",
+            "posture_weight_n",
+            "ride_compression_m",
+            "crouch_compression_m",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -113,19 +147,54 @@ def leg_compression_m(stroke_m: float, lowest_height_m: float, belly_up_z: float
     return stroke_m - lowest_height_m / belly_up_z
 
 
+def leg_normal_force(
+    compression_m: float,
+    velocity_along_m_s: float,
+    legs: LegImpedance,
+    crouch: bool = False,
+) -> float:
+    """Force [N] of legs compressed by ``compression_m`` along their axis, in
+    ``[0, force_max_n]`` (module docstring "Ride height").
+
+    ``velocity_along_m_s`` is the hemi's velocity along the leg axis (< 0: coming
+    down). Without a posture: the spring-damper ``k x - c v``. With one: the posture
+    about the ride compression (``crouch``: about the crouch, a push about to start),
+    and coming down faster than ``LANDING_SPEED_M_S`` the spring-damper's stop where
+    it is stronger.
+    """
+    law = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * velocity_along_m_s
+    if legs.posture_stiffness_n_m == 0.0:
+        return min(max(law, 0.0), legs.force_max_n)
+    target = legs.crouch_compression_m if crouch else legs.ride_compression_m
+    normal = (
+        legs.posture_weight_n
+        + legs.posture_stiffness_n_m * (compression_m - target)
+        - legs.posture_damping_n_s_m * velocity_along_m_s
+    )
+    if crouch:  # lowered, not dropped: the feet stay loaded
+        normal = max(normal, CROUCH_LOAD_FRACTION * legs.posture_weight_n)
+    landing = min(max((-velocity_along_m_s - LANDING_SPEED_M_S[0]) / _LANDING_BLEND, 0.0), 1.0)
+    if landing > 0.0 and law > normal:
+        normal += landing * (law - normal)
+    return min(max(normal, 0.0), legs.force_max_n)
+
+
 def leg_stance_force(
     compression_m: float,
     velocity_world_m_s: tuple[float, float, float],
     legs: LegImpedance,
     belly_up: tuple[float, float, float] = (0.0, 0.0, 1.0),
     hold_n: tuple[float, float] = (0.0, 0.0),
+    *,
+    crouch: bool = False,
 ) -> tuple[float, float, float]:
     """Force [N] of a hemi's legs compressed by ``compression_m`` (<= 0: no contact), in
     the ground's frame (z along the ground normal; on level ground the world).
 
     ``velocity_world_m_s`` is the hemi body's velocity [m/s], ``belly_up`` the hemi's
     body ``+z`` (unit; the legs push along it), ``hold_n`` the planted feet's spring
-    (x, y) [N] along the ground (:func:`foot_hold_force`). Module docstring for
+    (x, y) [N] along the ground (:func:`foot_hold_force`), ``crouch`` the posture's
+    set point (:func:`leg_normal_force`). Module docstring for
     the law; the result's norm never exceeds ``legs.force_max_n`` and the result
     stays within the ground's friction cone.
     """
@@ -134,12 +203,13 @@ def leg_stance_force(
     vx, vy, vz = velocity_world_m_s
     nx, ny, nz = belly_up
     if hold_n[0] != 0.0 or hold_n[1] != 0.0:
-        return _held_stance_force(compression_m, velocity_world_m_s, legs, belly_up, hold_n)
+        return _held_stance_force(
+            compression_m, velocity_world_m_s, legs, belly_up, hold_n, crouch=crouch
+        )
     if nx == 0.0 and ny == 0.0:  # level: the leg axis is the ground normal
-        return _level_stance_force(compression_m, vx, vy, vz, legs)
+        return _level_stance_force(compression_m, vx, vy, vz, legs, crouch=crouch)
     v_n = vx * nx + vy * ny + vz * nz
-    normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * v_n
-    normal = min(max(normal, 0.0), legs.force_max_n)
+    normal = leg_normal_force(compression_m, v_n, legs, crouch)
     if normal == 0.0:
         return 0.0, 0.0, 0.0
     tx, ty, tz = vx - v_n * nx, vy - v_n * ny, vz - v_n * nz  # across the leg axis
@@ -168,14 +238,15 @@ def _held_stance_force(
     legs: LegImpedance,
     belly_up: tuple[float, float, float],
     hold_n: tuple[float, float],
+    *,
+    crouch: bool = False,
 ) -> tuple[float, float, float]:
     """:func:`leg_stance_force` with planted feet: the hold spring and damper along the
     ground, within the friction cone and the force cap (normal first)."""
     vx, vy, vz = velocity
     nx, ny, nz = belly_up
     v_n = vx * nx + vy * ny + vz * nz
-    normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * v_n
-    normal = min(max(normal, 0.0), legs.force_max_n)
+    normal = leg_normal_force(compression_m, v_n, legs, crouch)
     if normal == 0.0:
         return 0.0, 0.0, 0.0
     fx, fy, fz = normal * nx, normal * ny, normal * nz
@@ -230,11 +301,16 @@ def slipped_anchor(
 
 
 def _level_stance_force(
-    compression_m: float, vx: float, vy: float, vz: float, legs: LegImpedance
+    compression_m: float,
+    vx: float,
+    vy: float,
+    vz: float,
+    legs: LegImpedance,
+    *,
+    crouch: bool = False,
 ) -> tuple[float, float, float]:
     """:func:`leg_stance_force` of a level hemi (the leg axis is the ground normal)."""
-    normal = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * vz
-    normal = min(max(normal, 0.0), legs.force_max_n)
+    normal = leg_normal_force(compression_m, vz, legs, crouch)
     if normal == 0.0:
         return 0.0, 0.0, 0.0
     speed_t = math.hypot(vx, vy)

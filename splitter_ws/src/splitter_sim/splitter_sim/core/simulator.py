@@ -97,6 +97,8 @@ def _boolean(name: str, value: object) -> None:
         raise ValueError(f"SimConfig.{name} must be a bool, got {value!r}")
 
 
+# [m] a hemi whose legs are within this of the crouch compression starts its push
+CROUCH_TOLERANCE_M = 0.005
 # [N/m] or [N s/m] the range of a leg stiffness and of a (contact or leg) damping
 _GAIN_RANGE = (0.0, 1e6)
 # What SimConfig's fields must be, besides the range of their node parameter (which a
@@ -114,6 +116,11 @@ _NON_NEGATIVE = (
     "leg_roll_damping_nm_s_rad",
     "leg_hold_stiffness_n_m",
     "leg_hold_damping_n_s_m",
+    "leg_posture_stiffness_n_m",
+    "leg_posture_damping_n_s_m",
+    "leg_posture_mass_kg",
+    "leg_ride_height_m",
+    "leg_crouch_height_m",
     "command_extrapolation_s",
     "knot_blend_s",
 )
@@ -235,6 +242,38 @@ class SimConfig:
         "hemi's 15 kg and the hold spring) [N s/m]",
         bounds=_GAIN_RANGE,
     )
+    # splitter_sim.core.legs ("Ride height"): the legs stand a hemi at the ride height, so
+    # a limb tip clears a step in a slide; they crouch before a push. The posture holds
+    # the nominal hemi (m_x + 2 m_y + 2 m_z = 9 kg: the leg controller's
+    # model, not the simulated robot's masses): 300 N/m is 5.8 rad/s, 0.58 of critical.
+    # Off by default (0; a scenario's leg_posture_stiffness_n_m turns it on): measured,
+    # not yet the default (README "Ride height").
+    leg_posture_stiffness_n_m: float = parameter_field(
+        0.0,
+        "stiffness of the legs' ride posture (a hemi stands at leg_ride_height_m, crouches "
+        "to leg_crouch_height_m before a push); 0: no posture, the spring and damper "
+        "alone [N/m]",
+        bounds=_GAIN_RANGE,
+    )
+    leg_posture_damping_n_s_m: float = parameter_field(
+        60.0, "damping of the legs' ride posture along the leg axis [N s/m]", bounds=_GAIN_RANGE
+    )
+    leg_posture_mass_kg: float = parameter_field(
+        9.0, "hemi mass whose weight the ride posture holds (the nominal hemi) [kg]",
+        bounds=(0.0, 1e3),
+    )  # fmt: skip
+    leg_ride_height_m: float = parameter_field(
+        0.2,
+        "height of a standing hemi's lowest mass above the ground that the posture holds, "
+        "within the stroke [m]",
+        bounds=(0.0, 10.0),
+    )
+    leg_crouch_height_m: float = parameter_field(
+        0.02,
+        "height of a hemi's lowest mass above the ground to which its legs crouch before "
+        "a push, which then starts from there [m]",
+        bounds=(0.0, 10.0),
+    )
     # splitter_sim.core.legs: a 0.4 m leg clears a 0.2 m half-wide body up to 90 - 30 deg.
     leg_cone_half_angle_deg: float = parameter_field(
         60.0,
@@ -281,6 +320,12 @@ class SimConfig:
             _boolean(name, getattr(self, name))
         if self.dt_s > 0.1:
             raise ValueError(f"SimConfig.dt_s must be <= 0.1 s, got {self.dt_s!r}")
+        for name in ("leg_ride_height_m", "leg_crouch_height_m"):
+            if not (0.0 <= getattr(self, name) <= self.thrust_stroke_m):
+                raise ValueError(
+                    f"SimConfig.{name} must be in [0, thrust_stroke_m] = "
+                    f"[0, {self.thrust_stroke_m}] m, got {getattr(self, name)!r}"
+                )
         cone = self.leg_cone_half_angle_deg
         if not (isinstance(cone, (int, float)) and 1.0 <= cone <= 89.0):
             raise ValueError(
@@ -333,6 +378,11 @@ class SimConfig:
             roll_damping_nm_s_rad=self.leg_roll_damping_nm_s_rad,
             hold_stiffness_n_m=self.leg_hold_stiffness_n_m,
             hold_damping_n_s_m=self.leg_hold_damping_n_s_m,
+            posture_stiffness_n_m=self.leg_posture_stiffness_n_m,
+            posture_damping_n_s_m=self.leg_posture_damping_n_s_m,
+            posture_weight_n=self.leg_posture_mass_kg * self.gravity_m_s2,
+            ride_compression_m=self.thrust_stroke_m - self.leg_ride_height_m,
+            crouch_compression_m=self.thrust_stroke_m - self.leg_crouch_height_m,
         )
 
     @property
@@ -544,6 +594,13 @@ class Simulator:
         self._jump_hemi: str = "auto"
         # Per-hemi thrusts (a, b) of a push by both hemis at once, else None.
         self._jump_per_hemi: tuple[tuple[float, float, float], ...] | None = None
+        # With a ride posture, a commanded push waits until the hemi has crouched
+        # (legs "Ride height"); once started it goes on until the command is zero.
+        self._push_started = [False, False]
+        self._crouching = (False, False)
+        # A hemi that starts crouched (its legs compressed to the crouch: a robot placed
+        # ready to push) holds the crouch until its first push: set at the first look.
+        self._hold_crouch: list[bool] | None = None
         self._t_ns = 0
         self._dt_ns = config.dt_ns
         self._dt = self._dt_ns * 1e-9
@@ -737,6 +794,8 @@ class Simulator:
         self._jump_force = f
         self._jump_hemi = hemi
         self._jump_per_hemi = None
+        if f == (0.0, 0.0, 0.0):
+            self._push_started = [False, False]
 
     def command_jump_forces(self, force_a_world_n: ArrayLike, force_b_world_n: ArrayLike) -> None:
         """Both hemis push at once, each its own thrust [N] (world frame).
@@ -750,6 +809,8 @@ class Simulator:
         self._jump_force = (fa[0] + fb[0], fa[1] + fb[1], fa[2] + fb[2])
         self._jump_hemi = "auto"
         self._jump_per_hemi = (fa, fb)
+        if fa == (0.0, 0.0, 0.0) and fb == (0.0, 0.0, 0.0):
+            self._push_started = [False, False]
 
     def preview_next_point(self, stamp_ns: int, velocity: ArrayLike) -> None:
         """The next joint command point, known ahead (stamped ``stamp_ns``, ``velocity``).
@@ -856,22 +917,34 @@ class Simulator:
         return min(heights[:5]), min(heights[5:])
 
     def _thrust_terms(
-        self, low: tuple[float, float], s: list[float]
+        self, low: tuple[float, float], s: list[float], update: bool = True
     ) -> tuple[tuple[int, float, float, float], ...]:
         """The jump thrust on each pushing hemi body (world [N]).
 
         A hemi pushes while its lowest mass is within the stroke of the ground and its
         legs face the ground (their workspace cone, :mod:`.legs`), with compliant legs
         at most their force limit ``leg_force_max_n`` (a push asked beyond it is cut).
+        Legs with a ride posture first crouch (:attr:`_crouching`, for
+        :meth:`_leg_terms`): a hemi starts its push once its legs are compressed to
+        the crouch (``update`` False, a snapshot, starts none).
         """
+        stroke = self.config.thrust_stroke_m
+        r = rotation_matrix(s[6], s[7], s[8], s[9])
+        belly = _along(self._ground_normal, r[2], r[5], r[8])
+        posture = self.config.compliant_legs and self._legs.posture_stiffness_n_m > 0.0
+        if posture and self._hold_crouch is None:
+            crouch = self._legs.crouch_compression_m - CROUCH_TOLERANCE_M
+            self._hold_crouch = [leg_compression_m(stroke, low[h], belly) >= crouch for h in (0, 1)]
+        hold = self._hold_crouch
+        self._crouching = (False, False) if hold is None else (hold[0], hold[1])
         fx, fy, fz = self._jump_force
         per_hemi = self._jump_per_hemi
         if per_hemi is None and fx == 0.0 and fy == 0.0 and fz == 0.0:
             return ()
-        stroke = self.config.thrust_stroke_m
-        r = rotation_matrix(s[6], s[7], s[8], s[9])
-        facing = legs_face_ground(_along(self._ground_normal, r[2], r[5], r[8]), self._legs)
+        facing = legs_face_ground(belly, self._legs)
         reach = [facing and low[h] <= stroke for h in range(2)]
+        if posture:
+            reach = self._crouched_first(reach, low, belly, update)
         if per_hemi is not None:
             return tuple(
                 (HEMI_BODY_INDEX[h], *self._within_leg_limit(per_hemi[h]))
@@ -890,6 +963,31 @@ class Simulator:
         share = 0.5 if self._jump_hemi == "auto" else 1.0
         force = self._within_leg_limit((fx * share, fy * share, fz * share))
         return tuple((HEMI_BODY_INDEX[h], *force) for h in pushing)
+
+    def _crouched_first(
+        self, reach: list[bool], low: tuple[float, float], belly: float, update: bool
+    ) -> list[bool]:
+        """``reach`` without the hemis still crouching before their push (legs "Ride
+        height"); sets :attr:`_crouching` and, with ``update``, starts the crouched (a
+        hemi that started crouched then stands up after its push)."""
+        crouch = self._legs.crouch_compression_m - CROUCH_TOLERANCE_M
+        stroke = self.config.thrust_stroke_m
+        started = self._push_started
+        hold = self._hold_crouch
+        crouching = list(self._crouching)
+        for h in range(2):
+            if not reach[h] or started[h]:
+                continue
+            if leg_compression_m(stroke, low[h], belly) >= crouch:
+                if update:
+                    started[h] = True
+                    if hold is not None:
+                        hold[h] = False
+                crouching[h] = False
+                continue
+            crouching[h] = True
+        self._crouching = (crouching[0], crouching[1])
+        return [reach[h] and not crouching[h] for h in range(2)]
 
     def _within_leg_limit(
         self, force: tuple[float, float, float] | Sequence[float]
@@ -972,7 +1070,9 @@ class Simulator:
                 if anchor is None
                 else foot_hold_force((where[0] - anchor[0], where[1] - anchor[1]), legs)
             )
-            fx, fy, fz = leg_stance_force(compression, velocity, legs, belly_up, hold)
+            fx, fy, fz = leg_stance_force(
+                compression, velocity, legs, belly_up, hold, crouch=self._crouching[h]
+            )
             if fz <= 0.0:
                 if update:
                     anchors[h] = None
@@ -1171,7 +1271,7 @@ class Simulator:
         shape = self._current_shape().relative()
         prm = self._prm
         low = self._lowest_per_hemi(self._mass_heights(s, shape))
-        thrust = self._thrust_terms(low, s)
+        thrust = self._thrust_terms(low, s, update=False)
         legs = self._leg_terms(low, thrust, s, shape, update=False)
         saved = prm.contact, prm.thrust
         prm.contact = ALL_MASSES if self.config.ground_contact else ()
