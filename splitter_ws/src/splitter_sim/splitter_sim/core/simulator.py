@@ -928,19 +928,28 @@ class Simulator:
         :meth:`_leg_terms`): a hemi starts its push once its legs are compressed to
         the crouch (``update`` False, a snapshot, starts none).
         """
+        fx, fy, fz = self._jump_force
+        per_hemi = self._jump_per_hemi
+        commanded = per_hemi is not None or fx != 0.0 or fy != 0.0 or fz != 0.0
+        posture = self.config.compliant_legs and self._legs.posture_stiffness_n_m > 0.0
+        if not commanded and (not posture or self._hold_crouch is not None):
+            if posture:
+                hold = self._hold_crouch
+                self._crouching = (hold[0], hold[1])
+            return ()
         stroke = self.config.thrust_stroke_m
         r = rotation_matrix(s[6], s[7], s[8], s[9])
         belly = _along(self._ground_normal, r[2], r[5], r[8])
-        posture = self.config.compliant_legs and self._legs.posture_stiffness_n_m > 0.0
-        if posture and self._hold_crouch is None:
-            crouch = self._legs.crouch_compression_m - CROUCH_TOLERANCE_M
-            self._hold_crouch = [leg_compression_m(stroke, low[h], belly) >= crouch for h in (0, 1)]
-        hold = self._hold_crouch
-        self._crouching = (False, False) if hold is None else (hold[0], hold[1])
-        fx, fy, fz = self._jump_force
-        per_hemi = self._jump_per_hemi
-        if per_hemi is None and fx == 0.0 and fy == 0.0 and fz == 0.0:
-            return ()
+        if posture:
+            if self._hold_crouch is None:
+                crouch = self._legs.crouch_compression_m - CROUCH_TOLERANCE_M
+                self._hold_crouch = [
+                    leg_compression_m(stroke, low[h], belly) >= crouch for h in (0, 1)
+                ]
+            hold = self._hold_crouch
+            self._crouching = (hold[0], hold[1])
+            if not commanded:
+                return ()
         facing = legs_face_ground(belly, self._legs)
         reach = [facing and low[h] <= stroke for h in range(2)]
         if posture:
