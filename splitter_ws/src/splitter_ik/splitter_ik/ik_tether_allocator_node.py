@@ -8,7 +8,9 @@ rules, also driven by the library closed loop): messages in, its outputs publish
   velocities) stamped ``t`` (docs/ARCHITECTURE.md, lockstep protocol item 4): a point
   of a piecewise-linear reference, the position planned at ``t`` and the velocity
   held until the next tick (:class:`~splitter_ik.core.allocator.Allocation`).
-* ``/splitter/imu`` gives the body angular velocity for the taut-tether limit.
+* ``/splitter/imu`` gives the body angular velocity for the taut-tether limit, and
+  its specific force whether the robot is in free fall (the limit applies) or held
+  by its feet.
 * ``/splitter/inertia`` (the measured state): the first one sets the starting radii
   (``initialize_from_measured_inertia``); and while nothing publishes setpoints, each
   control tick of it is answered from the last good setpoint, so that a lockstep
@@ -178,8 +180,13 @@ class IkTetherAllocatorNode(Node):
 
     def _on_imu(self, msg: Imu) -> None:
         def use(t_ns: int) -> TickOutput:
-            w = imu_from_msg(msg).angular_velocity_rad_s
-            return self.core.imu(t_ns, w, msg.header.frame_id)
+            sample = imu_from_msg(msg)
+            return self.core.imu(
+                t_ns,
+                sample.angular_velocity_rad_s,
+                msg.header.frame_id,
+                specific_force_m_s2=sample.linear_acceleration_m_s2,
+            )
 
         self._take(names.IMU, msg, use)
 

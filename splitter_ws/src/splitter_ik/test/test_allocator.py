@@ -200,9 +200,12 @@ def test_a_spin_too_slow_for_the_margin_is_reeled_in_taut() -> None:
     assert a.required_tension_n == 1.0
 
 
-def _reel_in_ramp(window_s: float, stop_radius_m: float) -> dict[str, np.ndarray]:
+def _reel_in_ramp(
+    window_s: float, stop_radius_m: float, supported: bool = False
+) -> dict[str, np.ndarray]:
     """The 0.3 N spin of the test above, the setpoint moving in at 0.25 m/s (r_x) until
-    ``stop_radius_m``, then resting there: a plan played back tick by tick."""
+    ``stop_radius_m``, then resting there: a plan played back tick by tick (``supported``:
+    with the feet on the ground)."""
     m_h = hemi_mass_kg(MODEL)
     start = np.array([2.8, 0.2, 0.2])
     w_y0 = math.sqrt(0.3 / (m_h * 2.8))
@@ -216,6 +219,7 @@ def _reel_in_ramp(window_s: float, stop_radius_m: float) -> dict[str, np.ndarray
             k * PERIOD_NS,
             principal_inertia(MODEL, [r_ref, 0.2, 0.2]),
             _spin_about_y(radii, momentum_y),
+            supported=supported,
         )
         radii = np.array(allocator.radii_m)
         out["tether"].append(a.joint_position[TETHER])
@@ -256,6 +260,26 @@ def test_a_plan_stopping_faster_than_the_spin_can_brake_is_overshot_taut() -> No
     assert np.min(tether) > MODEL.tether_length_min_m  # ...before the reel's end
     assert tether[-1] == pytest.approx(3.2, abs=1e-6)  # and back on it
     assert np.all(run["tension"][1:] >= run["required"][1:] - 1e-6)
+
+
+def test_held_by_its_feet_the_reel_brakes_at_its_own_limit() -> None:
+    """The same abrupt stop with the robot on the ground: the reel stops within its own
+    braking distance, and no free-fall tension is claimed.
+
+    In free fall the slow spin cannot brake the reel-in taut, so it coasts past the stop
+    (above); on the ground that coast dragged the hemis together after a landing.
+    """
+    free = _reel_in_ramp(0.1, 1.6)
+    held = _reel_in_ramp(0.1, 1.6, supported=True)
+    speed = 2.0 * 0.25  # [m/s] of tether length, the ramp's
+    deceleration = 0.9 * MODEL.tether_acceleration_max_m_s2  # [m/s^2] the configured share
+    braking_m = speed**2 / (2.0 * deceleration)  # [m] a stop at the reel's limit
+    overshoot_free = 3.2 - float(np.min(free["tether"]))
+    overshoot_held = 3.2 - float(np.min(held["tether"]))
+    assert overshoot_held <= braking_m + 0.01  # [m] a tick of lag at most
+    assert overshoot_free > 5.0 * max(overshoot_held, braking_m)
+    assert held["tether"][-1] == pytest.approx(3.2, abs=1e-6)
+    assert np.all(np.isnan(held["tension"])) and np.all(np.isnan(held["required"]))
 
 
 def test_without_spin_the_tether_is_never_paid_out() -> None:
@@ -330,6 +354,8 @@ def test_tension_is_nan_only_without_angular_velocity() -> None:
         {"tether_acceleration_fraction": 1.01},
         {"reference_velocity_window_s": -0.1},
         {"reference_velocity_window_s": math.inf},
+        {"supported_specific_force_m_s2": 0.0},
+        {"supported_specific_force_m_s2": math.nan},
     ],
 )
 def test_config_is_validated(kwargs: dict[str, float]) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -92,6 +93,25 @@ def test_a_bad_body_rate_keeps_the_last_good() -> None:
     for bad in ([math.inf, 0.0, 0.0], [2e3, 0.0, 0.0]):
         assert tick.imu(TICK_NS, bad).rejected is not None
     np.testing.assert_array_equal(tick.angular_velocity, W)
+
+
+def test_the_accelerometer_says_whether_the_feet_hold_the_robot() -> None:
+    """Free fall reads no specific force at the COM (the tether is internal); standing
+    on the Moon reads g. Held, the commands carry no taut limit and no tension."""
+    g_moon = 1.62  # [m/s^2]
+    tick = AllocatorTick(MODEL)
+    assert not tick.supported  # no accelerometer yet: free fall
+    tick.lockstep_tick(0, MEASURED, W, TARGET, [0.0, 0.0, 0.02])
+    assert not tick.supported and math.isfinite(tick.last_allocation.tension_n)
+    tick.lockstep_tick(TICK_NS, MEASURED, W, TARGET, [0.3, 0.1, g_moon])
+    assert tick.supported and tick.last_allocation.supported
+    assert math.isnan(tick.last_allocation.tension_n)
+    for bad in ([0.0, 0.0, 2e3], [math.nan, 0.0, 0.0]):  # corrupt: the last good kept
+        assert tick.imu(2 * TICK_NS, W, specific_force_m_s2=bad).rejected is not None
+        assert tick.supported
+    stricter = dataclasses.replace(tick.config, supported_specific_force_m_s2=2.0 * g_moon)
+    tick.configure(stricter, tick.settings, tick.lead_config)  # live: from the next tick
+    assert not tick.supported
 
 
 def test_measured_inertia_ticks_are_answered_once_their_imu_is_in() -> None:

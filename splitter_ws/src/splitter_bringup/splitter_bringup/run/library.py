@@ -13,7 +13,7 @@ object's calls. For each simulator step at time ``t`` (5 ms):
       reference and answer go to ``MpcTick`` as the latched topics and the jump
       command would; its jump wrench to ``SimulatorTick.command_jump``;
    b. MPC: ``MpcTick.on_state(t, w, q, I)`` -> setpoint stamped t;
-   c. allocator: ``AllocatorTick.lockstep_tick(t, I, w, setpoint)`` -> joint
+   c. allocator: ``AllocatorTick.lockstep_tick(t, I, w, setpoint, f)`` -> joint
       commands stamped t, to ``SimulatorTick.command_joints``;
 3. ``SimulatorTick.step`` to ``t + 5 ms`` (between ticks on the last commands).
 
@@ -269,7 +269,9 @@ def run_closed_loop(
                     "cost": status.cost,
                 }
             counts = {"failures": status.failures, "deadline_misses": status.deadline_misses}
-            commanded = allocator.lockstep_tick(t, inertia, rate, setpoint)
+            commanded = allocator.lockstep_tick(
+                t, inertia, rate, setpoint, readings.specific_force_m_s2
+            )
             for allocation in commanded.commands:  # one per tick in lockstep
                 sim.command_joints(t, allocation.joint_position, allocation.joint_velocity)
         _record(rec, state, setpoint, solve, counts)

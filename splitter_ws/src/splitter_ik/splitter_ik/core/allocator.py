@@ -24,7 +24,10 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    ``AllocatorConfig.reference_velocity_window_s``, one re-plan period) and closes
    the gap on top of it, so a planned reel-in runs at the plan's speed; if the plan
    then stops faster than the spin can brake taut, the reel overshoots, braking
-   taut, and still stops taut before its end,
+   taut, and still stops taut before its end. These limits are free-fall physics:
+   while the accelerometer says the robot is held by more than its tether (feet on
+   the ground, a push; ``AllocatorConfig.supported_specific_force_m_s2``) the reel
+   brakes at the actuator's limits,
 4. turns the radii into the 25 joint positions with
    ``splitter_model.kinematics.joint_positions_from_radii``.
 
@@ -114,6 +117,22 @@ class AllocatorConfig:
         bounds=(0.0, 10.0),
         live=True,
     )
+    # [m/s^2] the taut-tether limits are free-fall physics: only the tether holds the
+    # hemis together, so a reel-in a slow spin cannot brake taut must coast. A robot
+    # whose feet are on the ground (or pushing) is held by them too, and its
+    # accelerometer says so: in free fall the specific force at the COM is zero (the
+    # tether is internal), standing it is g (1.62 m/s^2 on the Moon). Above this the
+    # reel brakes at the actuator's limits. With the free-fall rule on the ground a
+    # coasting reel-in took r_x from 2.87 to 2.30 m after a landing, the setpoint
+    # constant at 2.93 m (draw 12 of `splitter campaign lunar_jumping --seed 0`).
+    supported_specific_force_m_s2: float = parameter_field(
+        0.5,
+        "measured specific force above which the robot is held by more than its tether "
+        "(feet on the ground, a push): the free-fall taut-tether limits on the reel are "
+        "lifted and no tension is reported [m/s^2]",
+        bounds=(1e-3, 1e3),
+        live=True,
+    )
     speed_fraction: float = parameter_field(  # [-] share of the joint and reel speed limits
         1.0,
         "share of the actuator speed limits (800 RPM joints, tether reel) used [-]",
@@ -139,7 +158,7 @@ class AllocatorConfig:
     # limiters when the allocator is built (read-only).
 
     def __post_init__(self) -> None:
-        for name in ("control_period_s", "tension_margin_n"):
+        for name in ("control_period_s", "tension_margin_n", "supported_specific_force_m_s2"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
@@ -175,6 +194,7 @@ class Allocation:
     tension_n: float  # [N] tether tension at t_ns (planned reel acceleration); NaN without w
     required_tension_n: float  # [N] least tension kept this tick (AllocatorConfig); NaN without w
     tension_margin_n: float  # [N] tension_n - required_tension_n (< 0: requirement missed)
+    supported: bool = False  # held by more than the tether: no taut limits, tension NaN
 
 
 @dataclass(frozen=True)
@@ -412,6 +432,8 @@ class TetherLimbAllocator:
         inertia_setpoint_kg_m2: ArrayLike,
         angular_velocity_rad_s: ArrayLike | None = None,
         setpoint_stamp_ns: int | None = None,
+        *,
+        supported: bool = False,
     ) -> Allocation:
         """Joint commands stamped ``t_ns`` answering the setpoint stamped ``setpoint_stamp_ns``.
 
@@ -421,8 +443,10 @@ class TetherLimbAllocator:
         the setpoints' own velocity.
 
         ``angular_velocity_rad_s`` (body frame) enables the taut-tether limit and the
-        tension report. Raises ``ValueError`` for a non-finite setpoint or angular
-        velocity, or a stamp earlier than the last one; the state is then unchanged.
+        tension report, both free-fall physics: ``supported`` (the robot is held by
+        more than its tether, feet on the ground) lifts them. Raises ``ValueError`` for a
+        non-finite setpoint or angular velocity, or a stamp earlier than the last one; the
+        state is then unchanged.
         """
         t_ns = int(t_ns)
         requested = np.asarray(inertia_setpoint_kg_m2, dtype=float)
@@ -459,7 +483,7 @@ class TetherLimbAllocator:
             reeling_in = bool(
                 target[0] < start.drive[0] or start.drive_rate[0] < 0.0 or tether_velocity < 0.0
             )
-            if w is not None:  # on the tether length L = 2 r_x
+            if w is not None and not supported:  # on the tether length L = 2 r_x
                 margin = self.required_tension_n(w, radius_x_prev, reeling_in)
                 taut_cap = 2.0 * max_taut_radius_acceleration(self.model, w, radius_x_prev, margin)
                 taut_brake = self._reel_in_braking(start.drive, target, w, reeling_in)
@@ -501,7 +525,7 @@ class TetherLimbAllocator:
             radius_x_accel = float(rate[0] - start.drive_rate[0]) / (2.0 * dt)
         self._previous, self._state = start, state
         radii = self._effective_radii(here.drive)
-        if w is None:
+        if w is None or supported:
             tension = required = math.nan
         else:
             tension = reeling_tether_tension(self.model, w, radius_x_prev, radius_x_accel)
@@ -518,6 +542,7 @@ class TetherLimbAllocator:
             tension_n=tension,
             required_tension_n=required,
             tension_margin_n=tension - required,
+            supported=supported,
         )
 
     def required_tension_n(

@@ -10,7 +10,8 @@ both answer a tick with the same objects and the same numbers.
   ``t`` in lockstep, ahead by the latency measured with the command lead
   (:class:`~splitter_ik.core.command_lead.CommandLead`), the body rate then predicted
   at the command's stamp from the inertia planned when it was measured.
-* The IMU gives the body rate for the taut-tether limit.
+* The IMU gives the body rate for the taut-tether limit, and its specific force
+  whether that limit applies (free fall) or the robot is held by its feet.
 * The first measured inertia sets the starting radii
   (``initialize_from_measured_inertia``); while nothing publishes setpoints
   (``publishers``), each control tick of it is answered from the held setpoint
@@ -71,6 +72,9 @@ SETPOINT_LIMIT_FACTOR = 10.0
 # [rad/s] an IMU body rate above this is corrupt (the robot spins at ~1 rad/s, its
 # joints at 84 rad/s; a gyro saturates far below): rejected.
 MAX_BODY_RATE_RAD_S = 1.0e3
+# [m/s^2] an IMU specific force above this is corrupt (a 196 N landing on a 9 kg hemi
+# is 22 m/s^2; accelerometers saturate at 16 G): rejected.
+MAX_SPECIFIC_FORCE_M_S2 = 1.0e3
 LEAD_HISTORY_NS = 1_000_000_000  # [ns] planned inertia kept for the rate prediction
 Values = dict[str, float | int | str | bool]
 
@@ -192,6 +196,7 @@ class AllocatorTick:
         self.last_allocation: Allocation | None = None
         self.last_good_setpoint: NDArray[np.float64] | None = None
         self.angular_velocity: NDArray[np.float64] | None = None  # [rad/s] last good
+        self.specific_force: NDArray[np.float64] | None = None  # [m/s^2] last good, body
         self.imu_t_ns: int | None = None
         self.answered_ns: int | None = None  # the last input tick answered
         self.window = DiagnosticsWindow()
@@ -252,16 +257,27 @@ class AllocatorTick:
         return self._answer(t_ns, setpoint)
 
     def imu(
-        self, t_ns: int, angular_velocity_rad_s: ArrayLike, frame_id: str = names.BASE_FRAME
+        self,
+        t_ns: int,
+        angular_velocity_rad_s: ArrayLike,
+        frame_id: str = names.BASE_FRAME,
+        specific_force_m_s2: ArrayLike | None = None,
     ) -> TickOutput:
-        """The body rate [rad/s] stamped ``t_ns`` (admitted); answers a tick it completes."""
+        """The body rate [rad/s] and specific force [m/s^2] stamped ``t_ns`` (admitted);
+        answers a tick it completes. Without a specific force the robot is taken to be
+        in free fall (the taut-tether limits apply)."""
         w = np.array(angular_velocity_rad_s, dtype=float)
+        f = None if specific_force_m_s2 is None else np.array(specific_force_m_s2, dtype=float)
         reason = _frame_refusal(frame_id)
         if reason is None and not np.all(np.abs(w) <= MAX_BODY_RATE_RAD_S):  # NaN too
             reason = f"angular_velocity: {w.tolist()} rad/s beyond {MAX_BODY_RATE_RAD_S:g} rad/s"
+        if reason is None and f is not None and not np.all(np.abs(f) <= MAX_SPECIFIC_FORCE_M_S2):
+            reason = (
+                f"linear_acceleration: {f.tolist()} m/s^2 beyond {MAX_SPECIFIC_FORCE_M_S2:g} m/s^2"
+            )
         if reason is not None:
             return self.rejected(names.IMU, t_ns, reason)
-        self.angular_velocity, self.imu_t_ns = w, t_ns
+        self.angular_velocity, self.specific_force, self.imu_t_ns = w, f, t_ns
         if self._pending_fallback_ns is not None and self._pending_fallback_ns == t_ns:
             return self._answer_fallback(t_ns)
         return TickOutput()
@@ -289,9 +305,11 @@ class AllocatorTick:
         measured_inertia_kg_m2: ArrayLike,
         angular_velocity_rad_s: ArrayLike,
         setpoint_kg_m2: ArrayLike,
+        specific_force_m_s2: ArrayLike | None = None,
     ) -> TickOutput:
         """One control tick as the node receives it in lockstep (the library loop's call):
-        the IMU and the measured inertia of ``t_ns``, then the setpoint stamped ``t_ns``.
+        the IMU (body rate, specific force) and the measured inertia of ``t_ns``, then
+        the setpoint stamped ``t_ns``.
 
         A stamp the rules refuse raises ``MessageValidationError``; a refused content is
         logged and handled as the node does.
@@ -299,7 +317,7 @@ class AllocatorTick:
         for topic in (names.IMU, names.INERTIA, names.INERTIA_SETPOINT):
             self.stamps.admit(topic, t_ns, self._clock_ns, self.not_before_ns(topic))
         outputs = (
-            self.imu(t_ns, angular_velocity_rad_s),
+            self.imu(t_ns, angular_velocity_rad_s, specific_force_m_s2=specific_force_m_s2),
             self.measured_inertia(t_ns, measured_inertia_kg_m2),
             self.setpoint(t_ns, setpoint_kg_m2),
         )
@@ -329,6 +347,15 @@ class AllocatorTick:
                 detection.symptom,
             )
         return new
+
+    @property
+    def supported(self) -> bool:
+        """The last good IMU says the robot is held by more than its tether (feet on the
+        ground, a push): its specific force is above ``supported_specific_force_m_s2``."""
+        f = self.specific_force
+        if f is None:
+            return False
+        return float(np.linalg.norm(f)) > self.config.supported_specific_force_m_s2
 
     # --- answering -------------------------------------------------------------------
     def _ensure_allocator(self, radii: ArrayLike | None = None) -> TetherLimbAllocator:
@@ -389,7 +416,11 @@ class AllocatorTick:
     def _command(self, t_ns: int, setpoint: NDArray[np.float64], setpoint_t_ns: int) -> Allocation:
         allocator = self._ensure_allocator()
         allocation = allocator.allocate(
-            t_ns, setpoint, self._rate_at(t_ns, setpoint_t_ns), setpoint_t_ns
+            t_ns,
+            setpoint,
+            self._rate_at(t_ns, setpoint_t_ns),
+            setpoint_t_ns,
+            supported=self.supported,
         )
         self.last_allocation = allocation
         self._last_command_ns = t_ns
