@@ -356,6 +356,7 @@ def test_tension_is_nan_only_without_angular_velocity() -> None:
         {"reference_velocity_window_s": math.inf},
         {"supported_specific_force_m_s2": 0.0},
         {"supported_specific_force_m_s2": math.nan},
+        {"supported_dwell_s": -0.1},
     ],
 )
 def test_config_is_validated(kwargs: dict[str, float]) -> None:

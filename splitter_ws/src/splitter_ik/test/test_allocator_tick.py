@@ -97,21 +97,32 @@ def test_a_bad_body_rate_keeps_the_last_good() -> None:
 
 def test_the_accelerometer_says_whether_the_feet_hold_the_robot() -> None:
     """Free fall reads no specific force at the COM (the tether is internal); standing
-    on the Moon reads g. Held, the commands carry no taut limit and no tension."""
+    on the Moon reads g. Held for the dwell, the commands carry no taut limit and no
+    tension; a lift-off restores them at once."""
     g_moon = 1.62  # [m/s^2]
+    standing = [0.3, 0.1, g_moon]
+    dwell_ticks = round(AllocatorConfig().supported_dwell_s * 1e9 / TICK_NS)
     tick = AllocatorTick(MODEL)
     assert not tick.supported  # no accelerometer yet: free fall
     tick.lockstep_tick(0, MEASURED, W, TARGET, [0.0, 0.0, 0.02])
     assert not tick.supported and math.isfinite(tick.last_allocation.tension_n)
-    tick.lockstep_tick(TICK_NS, MEASURED, W, TARGET, [0.3, 0.1, g_moon])
-    assert tick.supported and tick.last_allocation.supported
+    held = [
+        tick.lockstep_tick(k * TICK_NS, MEASURED, W, TARGET, standing).commands[0].supported
+        for k in range(1, dwell_ticks + 2)
+    ]
+    assert held == [False] * dwell_ticks + [True]  # from the dwell on
     assert math.isnan(tick.last_allocation.tension_n)
+    k = dwell_ticks + 2
     for bad in ([0.0, 0.0, 2e3], [math.nan, 0.0, 0.0]):  # corrupt: the last good kept
-        assert tick.imu(2 * TICK_NS, W, specific_force_m_s2=bad).rejected is not None
+        assert tick.imu(k * TICK_NS, W, specific_force_m_s2=bad).rejected is not None
         assert tick.supported
-    stricter = dataclasses.replace(tick.config, supported_specific_force_m_s2=2.0 * g_moon)
-    tick.configure(stricter, tick.settings, tick.lead_config)  # live: from the next tick
-    assert not tick.supported
+    tick.lockstep_tick(k * TICK_NS, MEASURED, W, TARGET, [0.0, 0.0, 0.01])  # lift-off
+    assert not tick.supported and not tick.last_allocation.supported
+    tick.lockstep_tick((k + 1) * TICK_NS, MEASURED, W, TARGET, standing)  # lands again
+    assert not tick.supported  # the dwell starts over
+    no_dwell = dataclasses.replace(tick.config, supported_dwell_s=0.0)
+    tick.configure(no_dwell, tick.settings, tick.lead_config)  # live: from the next tick
+    assert tick.supported
 
 
 def test_measured_inertia_ticks_are_answered_once_their_imu_is_in() -> None:

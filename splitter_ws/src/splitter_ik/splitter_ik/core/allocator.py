@@ -25,9 +25,9 @@ Each control tick :meth:`TetherLimbAllocator.allocate`
    the gap on top of it, so a planned reel-in runs at the plan's speed; if the plan
    then stops faster than the spin can brake taut, the reel overshoots, braking
    taut, and still stops taut before its end. These limits are free-fall physics:
-   while the accelerometer says the robot is held by more than its tether (feet on
-   the ground, a push; ``AllocatorConfig.supported_specific_force_m_s2``) the reel
-   brakes at the actuator's limits,
+   once the accelerometer has said for a while that the robot is held by more than
+   its tether (feet on the ground; ``AllocatorConfig.supported_specific_force_m_s2``
+   and ``supported_dwell_s``) the reel brakes at the actuator's limits,
 4. turns the radii into the 25 joint positions with
    ``splitter_model.kinematics.joint_positions_from_radii``.
 
@@ -128,9 +128,21 @@ class AllocatorConfig:
     supported_specific_force_m_s2: float = parameter_field(
         0.5,
         "measured specific force above which the robot is held by more than its tether "
-        "(feet on the ground, a push): the free-fall taut-tether limits on the reel are "
-        "lifted and no tension is reported [m/s^2]",
+        "(feet on the ground, a push) [m/s^2]",
         bounds=(1e-3, 1e3),
+        live=True,
+    )
+    # [s] one accelerometer cannot tell both hemis standing from one hemi touching down
+    # while the other still flies on its tether, which a braked reel-in would have to
+    # push: the limits are lifted only once the support has lasted this long. Lifted at
+    # once, a touchdown with the tether 22 deg from level (draw 33 of the same campaign)
+    # braked the reel under the flying hemi, rolled the robot at 0.68 rad/s (0.15 with
+    # the dwell) and hit 347 N (190 N with it). Lift-off restores them at once.
+    supported_dwell_s: float = parameter_field(
+        0.5,
+        "the support must last this long before the free-fall taut-tether limits on the "
+        "reel are lifted (and no tension is reported); lift-off restores them at once [s]",
+        bounds=(0.0, 60.0),
         live=True,
     )
     speed_fraction: float = parameter_field(  # [-] share of the joint and reel speed limits
@@ -162,12 +174,10 @@ class AllocatorConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"AllocatorConfig.{name} must be finite and > 0, got {value!r}")
-        window = self.reference_velocity_window_s
-        if not (isinstance(window, int | float) and math.isfinite(window) and window >= 0.0):
-            raise ValueError(
-                "AllocatorConfig.reference_velocity_window_s must be finite and >= 0, "
-                f"got {window!r}"
-            )
+        for name in ("reference_velocity_window_s", "supported_dwell_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"AllocatorConfig.{name} must be finite and >= 0, got {value!r}")
         for name in (
             "low_spin_tension_fraction",
             "speed_fraction",

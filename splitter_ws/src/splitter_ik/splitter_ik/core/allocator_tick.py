@@ -11,7 +11,8 @@ both answer a tick with the same objects and the same numbers.
   (:class:`~splitter_ik.core.command_lead.CommandLead`), the body rate then predicted
   at the command's stamp from the inertia planned when it was measured.
 * The IMU gives the body rate for the taut-tether limit, and its specific force
-  whether that limit applies (free fall) or the robot is held by its feet.
+  whether that limit applies (free fall) or the robot has been held by its feet for
+  ``supported_dwell_s``.
 * The first measured inertia sets the starting radii
   (``initialize_from_measured_inertia``); while nothing publishes setpoints
   (``publishers``), each control tick of it is answered from the held setpoint
@@ -197,6 +198,7 @@ class AllocatorTick:
         self.last_good_setpoint: NDArray[np.float64] | None = None
         self.angular_velocity: NDArray[np.float64] | None = None  # [rad/s] last good
         self.specific_force: NDArray[np.float64] | None = None  # [m/s^2] last good, body
+        self._supported_since_ns: int | None = None  # [ns] the support began (None: none)
         self.imu_t_ns: int | None = None
         self.answered_ns: int | None = None  # the last input tick answered
         self.window = DiagnosticsWindow()
@@ -278,6 +280,10 @@ class AllocatorTick:
         if reason is not None:
             return self.rejected(names.IMU, t_ns, reason)
         self.angular_velocity, self.specific_force, self.imu_t_ns = w, f, t_ns
+        if f is None or float(np.linalg.norm(f)) <= self.config.supported_specific_force_m_s2:
+            self._supported_since_ns = None
+        elif self._supported_since_ns is None:
+            self._supported_since_ns = t_ns
         if self._pending_fallback_ns is not None and self._pending_fallback_ns == t_ns:
             return self._answer_fallback(t_ns)
         return TickOutput()
@@ -350,12 +356,13 @@ class AllocatorTick:
 
     @property
     def supported(self) -> bool:
-        """The last good IMU says the robot is held by more than its tether (feet on the
-        ground, a push): its specific force is above ``supported_specific_force_m_s2``."""
-        f = self.specific_force
-        if f is None:
+        """The IMU says the robot is held by more than its tether (feet on the ground):
+        its specific force has been above ``supported_specific_force_m_s2`` for
+        ``supported_dwell_s``, up to the last good reading."""
+        since, now = self._supported_since_ns, self.imu_t_ns
+        if since is None or now is None:
             return False
-        return float(np.linalg.norm(f)) > self.config.supported_specific_force_m_s2
+        return now - since >= round(self.config.supported_dwell_s * 1e9)
 
     # --- answering -------------------------------------------------------------------
     def _ensure_allocator(self, radii: ArrayLike | None = None) -> TetherLimbAllocator:
