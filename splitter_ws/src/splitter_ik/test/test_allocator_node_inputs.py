@@ -119,6 +119,7 @@ def _snapshot(node: IkTetherAllocatorNode) -> tuple:
         node.core.answered_ns,
         allocator_state,
         node.core.angular_velocity,
+        node.core.specific_force,
         node.core.imu_t_ns,
     )
 
@@ -240,6 +241,25 @@ def _good_ticks(node: IkTetherAllocatorNode, n: int) -> None:
         node._on_imu(imu_msg(conv.stamp_to_msg(t), (0, 0, 0, 1), (0.0, 1.0, 0.0), (0, 0, 0)))
         node._on_setpoint(vector3_msg(conv.stamp_to_msg(t), TARGET))
         node._on_inertia(vector3_msg(conv.stamp_to_msg(t), principal_inertia(MODEL, [2, 0.3, 0.2])))
+
+
+def test_the_imu_accelerometer_tells_the_node_the_feet_hold_the_robot(make_node) -> None:
+    """Standing on the Moon (g up, base frame) for the dwell lifts the free-fall limits;
+    a reading of free fall restores them at once; a corrupt one changes nothing."""
+    standing = (0.0, 0.0, 1.62)  # [m/s^2]
+    with make_node() as node:
+        dwell_ticks = round(node.config.supported_dwell_s * NS_PER_S / TICK_NS)
+        for k in range(dwell_ticks + 1):
+            stamp = conv.stamp_to_msg(k * TICK_NS)
+            node._on_imu(imu_msg(stamp, (0, 0, 0, 1), (0.0, 0.0, 0.4), standing))
+            node._on_setpoint(vector3_msg(stamp, TARGET))
+        assert node.core.supported and node.core.last_allocation.supported
+        stamp = conv.stamp_to_msg((dwell_ticks + 1) * TICK_NS)
+        node._on_imu(imu_msg(stamp, (0, 0, 0, 1), (0.0, 0.0, 0.4), (0.0, 0.0, 1e6)))
+        assert node.core.supported  # rejected: the last good reading stands
+        node._on_imu(imu_msg(stamp, (0, 0, 0, 1), (0.0, 0.0, 0.4), (0.0, 0.0, 0.0)))
+        node._on_setpoint(vector3_msg(stamp, TARGET))
+        assert not node.core.supported and not node.core.last_allocation.supported
 
 
 @pytest.mark.parametrize("value", [1e300, -1e300, 1.7976931348623157e308, 1e5, 0.0])
