@@ -21,7 +21,7 @@ from splitter_bringup.analysis.jump_campaign import (
     scenario_for_jump_draw,
     tether_tilt_deg,
 )
-from splitter_bringup.scenario.definition import ScenarioError, load_scenario
+from splitter_bringup.scenario.definition import ScenarioError, load_scenario, scenario_dir
 from splitter_bringup.scenario.graph_config import simulator_parameters
 from splitter_bringup.scenario.simulation import sim_config
 from splitter_model.terrain import Step, Terrain
@@ -142,6 +142,24 @@ def test_a_draws_scenario_file_flies_the_same_world(tmp_path: Path) -> None:
             np.testing.assert_allclose(a.force_b_n, b.force_b_n, atol=1e-9)
         assert loaded.robot_errors == flown.robot_errors
         assert loaded.controller == flown.controller
+
+
+def test_a_draws_scenario_file_keeps_a_jumps_couple(tmp_path: Path) -> None:
+    """A push's couple_n (a spin whatever the heading) is in the draw's file, scaled by
+    the draw's spin, so a replay flies the campaign's pushes."""
+    source = yaml.safe_load((scenario_dir() / "lunar_jumping.yaml").read_text())
+    source["jumps"][1]["couple_n"] = 52.0
+    base_path = tmp_path / "lunar_jumping.yaml"
+    base_path.write_text(yaml.safe_dump(source))
+    variants = {v: load_scenario(base_path, v) for v in ("mpc", "open_loop")}
+    for ranges in (JumpRanges(), JumpRanges(slope_deg=0.0, step_height_m=0.0)):
+        draw = make_jump_draw(5, 99, 2, ranges)
+        path = tmp_path / "draw.yaml"
+        path.write_text(yaml.safe_dump(jump_scenario_document(variants, draw)))
+        flown = scenario_for_jump_draw(variants["mpc"], draw)
+        loaded = load_scenario(path, "mpc")
+        assert [j.couple_n for j in loaded.jumps] == [j.couple_n for j in flown.jumps]
+        assert loaded.jumps[1].couple_n == pytest.approx(52.0 * draw.spin_scale)
 
 
 def test_the_terrain_factors_of_a_draw() -> None:

@@ -19,6 +19,7 @@ from splitter_mpc.core.gait import (
     GaitOutput,
     GaitPhase,
     GaitPhaseMachine,
+    LandingTiming,
     PlannedJump,
     attitude_reference_at_stamp,
     gait_config_from_parameters,
@@ -29,6 +30,8 @@ from splitter_mpc.core.gait import (
     propagate_attitude,
     quaternion_multiply,
     smallest_rotation,
+    spin_couple_n,
+    timed_landing_plan,
     timed_landing_reference,
 )
 from splitter_msgs_py import names
@@ -226,6 +229,51 @@ def test_both_hemis_push_their_own_forces_once_both_are_in_stance() -> None:
     np.testing.assert_allclose(
         out.jump_torque_nm, np.cross(lever_a, force_a) - np.cross(lever_a, force_b), atol=1e-12
     )
+
+
+@pytest.mark.parametrize("hemi", ["auto", "both"])
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0, 90.0, 200.0])
+def test_a_jump_couple_spins_about_the_vertical_whatever_the_heading(
+    hemi: str, heading_deg: float
+) -> None:
+    """Each hemi pushes couple_n across the tether in the horizontal plane: the force is
+    the plan's, the torque gains 2 r x F_side, 2 r_x couple_n cos(tilt) about +z, at any
+    heading (and a roll about the level line when the tether is tilted)."""
+    q = quaternion_multiply(
+        axis_angle((0.0, 0.0, 1.0), math.radians(heading_deg)),
+        axis_angle((0.0, 1.0, 0.0), math.radians(8.0)),  # standing on a slope
+    )
+    force = (80.0, 0.0, 160.0)  # [N]
+    couple = 52.0  # [N]
+    force_b = force if hemi == "both" else (0.0, 0.0, 0.0)
+    plain = PlannedJump(0, force, 300 * MS, hemi, force_b)
+    spun = PlannedJump(0, force, 300 * MS, hemi, force_b, couple_n=couple)
+    outs = [
+        tick(GaitPhaseMachine(GaitConfig(jumps=(j,))), 0, normal=(STANCE_N,) * 2, orientation=q)
+        for j in (plain, spun)
+    ]
+    np.testing.assert_allclose(outs[1].jump_force_n, outs[0].jump_force_n, atol=1e-12)
+    added = outs[1].jump_torque_nm - outs[0].jump_torque_nm
+    tether = rotate(q, [1.0, 0.0, 0.0])
+    side = spin_couple_n(q, couple)
+    assert abs(side @ tether) < 1e-12 and side[2] == 0.0  # across the tether, horizontal
+    assert np.linalg.norm(side) == pytest.approx(couple)
+    np.testing.assert_allclose(added, 2.0 * np.cross(RADIUS_X_M * tether, side), atol=1e-9)
+    lever = RADIUS_X_M * math.hypot(tether[0], tether[1])  # [m] horizontal, to each hemi
+    assert added[2] == pytest.approx(2.0 * lever * couple)  # counter-clockwise from above
+
+
+def test_a_couple_needs_both_hemis_and_a_finite_size() -> None:
+    with pytest.raises(ValueError, match="couple_n"):
+        GaitConfig(jumps=(PlannedJump(0, (0.0, 0.0, 1.0), MS, "a", couple_n=10.0),))
+    with pytest.raises(ValueError, match="couple_n"):
+        GaitConfig(jumps=(PlannedJump(0, (0.0, 0.0, 1.0), MS, "auto", couple_n=math.nan),))
+    with pytest.raises(ValueError, match="jump_couples_n"):
+        jump_plan_from_arrays([0.0], [0.0, 0.0, 1.0], [0.1], ["auto"], couples_n=[1.0, 2.0])
+    with pytest.raises(ValueError, match="jump_couples_n"):
+        jump_plan_from_arrays([0.0], [0.0, 0.0, 1.0], [0.1], ["auto"], couples_n=[math.inf])
+    plan = jump_plan_from_arrays([0.0], [0.0, 0.0, 1.0], [0.1], ["auto"], couples_n=[52.0])
+    assert plan[0].couple_n == 52.0
 
 
 def test_a_force_for_hemi_b_is_for_a_push_by_both_only() -> None:
@@ -914,6 +962,128 @@ def test_a_timed_landing_spins_up_no_faster_than_the_cap() -> None:
         timed += 1
     assert fastest_uncapped > 2.0 * LANDING_RATE_MAX_RAD_S
     assert timed > 20 and untimed > 20
+
+
+def _tether_tilt_at_touchdown(plan, touchdown_s: float) -> float:
+    """[rad] the tether's angle from level when the two-spin reference meets the ground."""
+    if plan.spin_up_s == 0.0:
+        q = propagate_attitude(
+            plan.attitude_wxyz, plan.spin_axis_body * plan.spin_up_rad_s, touchdown_s
+        )
+    else:
+        q_switch, w_landing = plan.switch()
+        q = propagate_attitude(q_switch, w_landing, touchdown_s - plan.spin_up_s)
+    return math.asin(min(1.0, abs(quaternion_to_matrix(q)[2, 0])))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_spin_up_reaches_a_level_touchdown_a_steady_spin_cannot(seed: int) -> None:
+    """lunar_jumping's flight: 0.46 rad/s, a 4.4 s flight, the reel able to slow the spin
+    by 13 % (2.8 -> 3.0 m). With a tilted momentum many phases need more than a steady
+    spin within 0.40-0.5 rad/s reaches; a spin-up to 1.5 rad/s first levels them, ends
+    at least settle_s before the touchdown and meets the ground at the spin it had.
+    Where even that does not reach, the plan lands nearer level than the coast."""
+    rng = np.random.default_rng(seed)
+    inertia = np.array([0.5, 141.4, 150.0])  # [kg m^2]
+    touchdown_s, settle_s, spin_up = 4.4, 1.5, 1.5  # [s], [s], [rad/s]
+    slowest = (2.8 / 3.0) ** 2
+    w = np.array([0.0, 0.0, 0.46])  # [rad/s] about the belly
+    rate_now = np.linalg.norm(inertia * w) / inertia[2]
+    by_spin_up, nearer = 0, 0
+    for _ in range(40):
+        tilt = axis_angle(rng.standard_normal(3) * (1.0, 1.0, 0.0), rng.uniform(0.1, 0.35))
+        q = quaternion_multiply(tilt, axis_angle((0.0, 0.0, 1.0), rng.uniform(0.0, 2 * math.pi)))
+        steady = timed_landing_plan(
+            q, w, inertia, touchdown_s, slowest_fraction=slowest, spin_up_rad_s=0.0, settle_s=0.0
+        )
+        plan = timed_landing_plan(
+            q, w, inertia, touchdown_s, slowest_fraction=slowest, spin_up_rad_s=spin_up,
+            settle_s=settle_s,
+        )  # fmt: skip
+        if plan is None:  # nothing to time: the spin it has lands level enough
+            assert steady is None
+            continue
+        tilt_at_touchdown = _tether_tilt_at_touchdown(plan, touchdown_s)
+        if steady is not None and _tether_tilt_at_touchdown(steady, touchdown_s) < 1e-9:
+            # within the steady spins' reach: the same steady spin
+            assert plan.spin_up_s == 0.0 and plan.spin_up_rad_s == steady.spin_up_rad_s
+            assert slowest * rate_now - 1e-12 <= plan.spin_up_rad_s <= LANDING_RATE_MAX_RAD_S
+            assert tilt_at_touchdown < 1e-9
+        elif tilt_at_touchdown < 1e-9:
+            by_spin_up += 1
+            assert 0.0 < plan.spin_up_s <= touchdown_s - settle_s
+            assert plan.spin_up_rad_s == spin_up
+            assert plan.landing_rate_rad_s == pytest.approx(min(rate_now, LANDING_RATE_MAX_RAD_S))
+        else:  # out of reach: nearer level than the coast
+            nearer += 1
+            coast = LandingTiming(plan.attitude_wxyz, plan.spin_axis_body, rate_now, 0.0, rate_now)
+            assert tilt_at_touchdown < _tether_tilt_at_touchdown(coast, touchdown_s)
+    assert by_spin_up >= 15
+
+
+def test_a_spin_up_plan_refuses_bad_reach() -> None:
+    inertia = np.array([0.5, 141.4, 150.0])
+    tilted = axis_angle([1.0, 0.0, 0.0], 0.3)
+    spin = np.array([0.0, 0.0, 0.45])
+    for kwargs, name in (
+        ({"slowest_fraction": 0.0, "spin_up_rad_s": 1.0, "settle_s": 1.0}, "slowest_fraction"),
+        ({"slowest_fraction": 1.5, "spin_up_rad_s": 1.0, "settle_s": 1.0}, "slowest_fraction"),
+        ({"slowest_fraction": 0.8, "spin_up_rad_s": math.nan, "settle_s": 1.0}, "spin_up_rad_s"),
+        ({"slowest_fraction": 0.8, "spin_up_rad_s": 1.0, "settle_s": -1.0}, "settle_s"),
+    ):
+        with pytest.raises(ValueError, match=name):
+            timed_landing_plan(tilted, spin, inertia, 3.0, **kwargs)
+    # A spin-up that would end within settle_s of the touchdown is no plan.
+    short = timed_landing_plan(
+        tilted, spin, inertia, 0.5, slowest_fraction=0.99, spin_up_rad_s=1.0, settle_s=0.5
+    )
+    assert short is None or short.spin_up_s == 0.0
+
+
+def test_the_machine_hands_over_from_the_spin_up_to_the_landing_spin() -> None:
+    """landing_timed with landing_spin_up_rad_s: at lift-off the spin-up reference, at
+    its end the landing spin's (continuing the same attitude), which Landing's start
+    keeps (it used to replace a last flight's timing with the spin slowed); a touchdown
+    first drops the pending one."""
+    inertia = np.array([0.5, 141.4, 150.0])
+    tilt = axis_angle((1.0, 0.0, 0.0), 0.25)
+    q0 = quaternion_multiply(tilt, axis_angle((0.0, 0.0, 1.0), 0.4))  # needs a 1.4 s spin-up
+    w = np.array([0.0, 0.0, 0.46])
+    config = GaitConfig(
+        attitude_reference="landing_timed",
+        landing_spin_up_rad_s=1.0,
+        jumps=(jump(0.0, duration_s=0.2),),
+    )
+
+    def fly(touch_at_s: float | None):
+        machine = GaitPhaseMachine(config, gravity_m_s2=MOON_G)
+        refs = []
+        for k in range(600):
+            t = k * TICK_NS
+            on_ground = k < 20 or (touch_at_s is not None and t >= touch_at_s * 1e9)
+            air_s = max(0.0, t / 1e9 - 0.2)  # [s] ballistic from 0.2 s at 3.6 m/s up
+            out = tick(
+                machine, t, normal=(STANCE_N, STANCE_N) if on_ground else (0.0, 0.0),
+                velocity=(0.0, 0.0, 3.6 - MOON_G * air_s), rate=w, orientation=q0,
+                position=(0.0, 0.0, 1.5 + 3.6 * air_s - 0.5 * MOON_G * air_s**2),
+                inertia=inertia,
+            )  # fmt: skip
+            if out.reference is not None:
+                refs.append((t, out.reference))
+        return refs
+
+    refs = fly(None)
+    (t_lift, first), (t_switch, second) = refs[1], refs[2]
+    # the first tick's, the lift-off's, the hand-over, and Landing's start: the timing held
+    assert len(refs) == 4 and refs[3][1] is second
+    assert first.stamp_ns == t_lift and np.linalg.norm(first.w_ref_rad_s) == pytest.approx(1.0)
+    assert t_switch >= second.stamp_ns > t_lift and second.stamp_ns - t_switch < TICK_NS
+    assert np.linalg.norm(second.w_ref_rad_s) == pytest.approx(0.46, rel=1e-6)
+    np.testing.assert_allclose(
+        second.q_ref_wxyz, first.attitude_at(second.stamp_ns), atol=1e-12
+    )  # the same reference, slower from here
+    landed_first = fly((t_lift + (second.stamp_ns - t_lift) // 2) / 1e9)
+    assert all(ref.stamp_ns < second.stamp_ns for _t, ref in landed_first)
 
 
 def test_nothing_to_time_without_a_tilted_momentum_or_time() -> None:

@@ -264,7 +264,8 @@ def jumps_for_draw(jumps: Sequence[JumpSpec], draw: JumpDraw) -> tuple[JumpSpec,
 
     A single-hemi push keeps its hemi and takes hemi a's numbers when it is a's, b's
     when it is b's; a shared push (``auto``) becomes each hemi's half; a launch's
-    couple is scaled by ``spin_scale``.
+    couple (the difference of its hemis' forces, or its ``couple_n``) is scaled by
+    ``spin_scale``.
     """
     out = []
     for k, jump in enumerate(jumps):
@@ -290,6 +291,7 @@ def jumps_for_draw(jumps: Sequence[JumpSpec], draw: JumpDraw) -> tuple[JumpSpec,
                 duration_s=jump.duration_s,
                 hemi="both",
                 force_b_n=tilted_push(fb, sb, tb, zb),
+                couple_n=jump.couple_n * draw.spin_scale,
             )
         )
     return tuple(out)
@@ -397,6 +399,7 @@ def jump_scenario_document(variants: Mapping[str, Scenario], draw: JumpDraw) -> 
                 else {"force_n": list(j.force_n)}
             ),
             "duration_s": j.duration_s,
+            **({"couple_n": j.couple_n} if j.couple_n else {}),
         }
         for j in flown.jumps
     ]

@@ -33,7 +33,7 @@ from splitter_model.faults import JointFault, faults_from_records
 from splitter_model.model import gravity_from_name
 from splitter_model.terrain import FLAT, Step, Terrain
 from splitter_mpc.core.estimator import EstimatorConfig
-from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES
+from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES, GaitConfig
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
 from splitter_msgs_py.core.parameter_fields import parameter_fields
 from splitter_sim.core.robot_errors import RobotErrors
@@ -53,7 +53,10 @@ class JumpSpec:
     hemi's body, so it also exerts a moment about the centre of mass.
     ``hemi: both`` pushes with both at once, each its own force: in YAML
     ``force_a_n`` and ``force_b_n`` (kept as ``force_n`` and ``force_b_n``); unequal
-    forces make a launch that adds rotation (paper III.A).
+    forces make a launch that adds rotation (paper III.A). ``couple_n`` [N] (hemi
+    "both" or "auto"): each hemi also pushes this across the tether in the horizontal
+    plane, in opposite directions, a spin about the vertical whatever the heading
+    (``splitter_mpc.core.gait.PlannedJump``).
     The jump starts at the first control tick at or after ``time_s`` when the
     pushing hemi (both, for "both") is in stance.
     """
@@ -63,6 +66,7 @@ class JumpSpec:
     duration_s: float  # [s]
     hemi: str = "auto"
     force_b_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N] world, hemi b's ("both")
+    couple_n: float = 0.0  # [N] each hemi's push across the tether (a spin about the vertical)
 
 
 @dataclass(frozen=True)
@@ -82,6 +86,12 @@ class ControllerSpec:
     # "momentum_aligned": the same, started with the body axis of w_ref turned onto
     # the angular momentum (reachable in torque-free flight; splitter_mpc.core.gait).
     attitude_reference: str = "integrate_w_ref"
+    # [rad/s] landing_timed: where no steady spin within the reel's reach times the
+    # landing, spin up to this first and back (0: steady spins only;
+    # splitter_mpc.core.gait.timed_landing_plan)
+    landing_spin_up_rad_s: float = 0.0
+    # [s] landing_timed: a spin-up ends at least this long before the predicted touchdown
+    landing_spin_up_settle_s: float = 1.5
     # The MPC formulation (splitter_mpc.core.mpc): "paper" weighs w - w_ref over
     # N = 50 x 10 ms (section VI); "momentum" weighs the rate across the reference
     # axis and the reachable spin about it, over a longer prediction step.
@@ -285,8 +295,8 @@ def _findings(data: Any, variants: tuple[str, ...]) -> tuple[PaperFinding, ...]:
     return tuple(out)
 
 
-JUMP_FIELDS = ("time_s", "force_n", "duration_s", "hemi")
-BOTH_JUMP_FIELDS = ("time_s", "force_a_n", "force_b_n", "duration_s", "hemi")
+JUMP_FIELDS = ("time_s", "force_n", "duration_s", "hemi", "couple_n")
+BOTH_JUMP_FIELDS = ("time_s", "force_a_n", "force_b_n", "duration_s", "hemi", "couple_n")
 
 
 def _jumps(data: Any) -> tuple[JumpSpec, ...]:
@@ -318,8 +328,13 @@ def _jumps(data: Any) -> tuple[JumpSpec, ...]:
                 force_b = np.zeros(3)
             duration = _positive(j, "duration_s")
             time_s = _finite(j, "time_s", 0.0)
+            couple = _finite(j, "couple_n", 0.0)
         except ScenarioError as exc:
             raise ScenarioError(f"{where}.{exc}") from exc
+        if couple != 0.0 and hemi not in ("both", "auto"):
+            raise ScenarioError(
+                f"{where}.couple_n: needs both hemis (hemi 'both' or 'auto'), got hemi {hemi!r}"
+            )
         if time_s < 0.0:
             raise ScenarioError(f"{where}.time_s: must be >= 0, got {time_s}")
         if out and time_s < out[-1].time_s + out[-1].duration_s:
@@ -335,6 +350,7 @@ def _jumps(data: Any) -> tuple[JumpSpec, ...]:
                 duration_s=duration,
                 hemi=hemi,
                 force_b_n=(float(force_b[0]), float(force_b[1]), float(force_b[2])),
+                couple_n=couple,
             )
         )
     return tuple(out)
@@ -446,6 +462,8 @@ CONTROLLER_FIELDS = (
     "q_q",
     "q_tq",
     "attitude_reference",
+    "landing_spin_up_rad_s",
+    "landing_spin_up_settle_s",
     "objective",
     "horizon",
     "dt_s",
@@ -554,6 +572,8 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         q_q=float(ctrl.get("q_q", 0.0)),
         q_tq=float(ctrl.get("q_tq", 0.0)),
         attitude_reference=str(ctrl.get("attitude_reference", "integrate_w_ref")),
+        landing_spin_up_rad_s=_positive(ctrl, "landing_spin_up_rad_s", 0.0, zero_ok=True),
+        landing_spin_up_settle_s=_positive(ctrl, "landing_spin_up_settle_s", 1.5, zero_ok=True),
         objective=str(ctrl.get("objective", "paper")),
         horizon=_horizon(ctrl),
         dt_s=_positive(ctrl, "dt_s", 0.01),
@@ -574,6 +594,12 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
             f"controller.fault_effort_scale: must be in [0.001, 1], got "
             f"{controller.fault_effort_scale}"
         )
+    gait_specs = {name: spec for name, _default, spec in parameter_fields(GaitConfig)}
+    for name in ("landing_spin_up_rad_s", "landing_spin_up_settle_s"):
+        try:
+            gait_specs[name].validate(getattr(controller, name))
+        except ValueError as exc:
+            raise ScenarioError(f"controller.{name}: {exc}") from exc
     if controller.objective not in OBJECTIVES:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")
     if controller.integrator not in INTEGRATORS:

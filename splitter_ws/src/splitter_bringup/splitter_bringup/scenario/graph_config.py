@@ -199,6 +199,8 @@ def gait_parameters(scenario: Scenario) -> dict:
         "use_sim_time": True,
         "w_ref_rad_s": _floats(c.w_ref_rad_s),
         "attitude_reference": c.attitude_reference,
+        "landing_spin_up_rad_s": float(c.landing_spin_up_rad_s),
+        "landing_spin_up_settle_s": float(c.landing_spin_up_settle_s),
         "gravity_m_s2": float(scenario.gravity_m_s2),  # the planet the robot is on
         **jump_plan_parameters(scenario.jumps),
     }

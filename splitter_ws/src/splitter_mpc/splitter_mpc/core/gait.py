@@ -305,6 +305,147 @@ def timed_landing_reference(
     with the tether within that tolerance anyway (timing costs spin), or only a faster
     spin than that would time it.
     """
+    geometry = _landing_geometry(
+        orientation_wxyz,
+        angular_velocity_rad_s,
+        principal_inertia_kg_m2,
+        touchdown_in_s,
+        spin_axis_body,
+        tilt_tolerance_deg,
+    )
+    if geometry is None:
+        return None
+    aligned, axis, phi0, rate_now = geometry
+    k = round((rate_now * touchdown_in_s + phi0) / math.pi)
+    candidates = [(j * math.pi - phi0) / touchdown_in_s for j in (k - 1, k, k + 1)]
+    fastest = max(rate_max_rad_s, rate_now)
+    allowed = [c for c in candidates if 0.0 < c <= fastest]
+    if not allowed:
+        return None
+    rate = min(allowed, key=lambda c: (abs(c - rate_now), c))
+    return aligned, axis * rate
+
+
+@dataclass(frozen=True)
+class LandingTiming:
+    """A timed landing in two steady spins about the belly: ``spin_up_s`` [s] at
+    ``spin_up_rad_s`` from the lift-off, then ``landing_rate_rad_s`` to the touchdown.
+
+    ``spin_up_s`` is 0 when one steady spin times the landing.
+    """
+
+    attitude_wxyz: NDArray[np.float64]  # the reference at the lift-off (world <- base)
+    spin_axis_body: NDArray[np.float64]  # [-] unit, the belly
+    spin_up_rad_s: float  # [rad/s] the first spin
+    spin_up_s: float  # [s] how long it lasts
+    landing_rate_rad_s: float  # [rad/s] the spin that meets the ground
+
+    def switch(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(attitude reference, body rate reference) when the spin-up ends."""
+        first = self.spin_axis_body * self.spin_up_rad_s
+        return (
+            propagate_attitude(self.attitude_wxyz, first, self.spin_up_s),
+            self.spin_axis_body * self.landing_rate_rad_s,
+        )
+
+
+def timed_landing_plan(
+    orientation_wxyz: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike,
+    touchdown_in_s: float,
+    *,
+    slowest_fraction: float,
+    spin_up_rad_s: float,
+    settle_s: float,
+    spin_axis_body: ArrayLike = LANDING_SPIN_AXIS,
+    tilt_tolerance_deg: float = LANDING_TILT_TOLERANCE_DEG,
+    rate_max_rad_s: float = LANDING_RATE_MAX_RAD_S,
+) -> LandingTiming | None:
+    """A timed landing with the reach of a spin-up: :func:`timed_landing_reference`'s
+    goal (the tether level at the touchdown) where one steady spin cannot reach it.
+
+    A steady spin ``w*`` times the landing only between the slowest spin the reel can
+    pay out to (``slowest_fraction`` of the spin now: the moment about the belly now
+    over the largest the reel reaches) and ``max(rate_max_rad_s, spin now)``: for
+    lunar_jumping's launch 0.40-0.5 rad/s, -0.26 to +0.18 rad over a 4.4 s flight,
+    where a level touchdown may need up to +-pi/2. Reeling in first advances the
+    phase: ``tau`` s at ``spin_up_rad_s``, then the landing spin ``w_L = min(spin now,
+    rate_max_rad_s)`` for the rest, so ``tau (w_up - w_L) + w_L T``
+    turns the tether onto a level direction (``k pi - phi0``), with at least
+    ``settle_s`` [s] left to reel back out before the touchdown. Choice: the steady
+    spin within reach nearest the spin now, else the shortest spin-up; where neither
+    reaches, the reachable plan nearest level (the slowest or fastest steady spin, or
+    the longest spin-up) if it is nearer than the spin the robot has. None when there
+    is nothing to time (as :func:`timed_landing_reference`) or nothing nearer.
+    """
+    if not (math.isfinite(slowest_fraction) and 0.0 < slowest_fraction <= 1.0):
+        raise ValueError(f"slowest_fraction: must be in (0, 1], got {slowest_fraction}")
+    for name, value in (("spin_up_rad_s", spin_up_rad_s), ("settle_s", settle_s)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"{name}: must be finite and >= 0, got {value}")
+    geometry = _landing_geometry(
+        orientation_wxyz,
+        angular_velocity_rad_s,
+        principal_inertia_kg_m2,
+        touchdown_in_s,
+        spin_axis_body,
+        tilt_tolerance_deg,
+    )
+    if geometry is None:
+        return None
+    aligned, axis, phi0, rate_now = geometry
+    total = touchdown_in_s
+    fastest = max(rate_max_rad_s, rate_now)
+    slowest = slowest_fraction * rate_now
+    landing_rate = min(rate_now, rate_max_rad_s)
+    k = round((rate_now * total + phi0) / math.pi)
+    targets = [j * math.pi - phi0 for j in range(k - 2, k + 4)]  # [rad] turns that level it
+    steady = [theta / total for theta in targets if slowest <= theta / total <= fastest]
+    if steady:
+        rate = min(steady, key=lambda c: (abs(c - rate_now), c))
+        return LandingTiming(aligned, axis, rate, 0.0, rate)
+    gain = spin_up_rad_s - landing_rate  # [rad/s] phase gained per second of spin-up
+    longest = total - settle_s  # [s] the longest spin-up
+    if gain > 0.0:
+        spin_ups = [
+            tau
+            for tau in ((theta - landing_rate * total) / gain for theta in targets)
+            if 0.0 < tau <= longest
+        ]
+        if spin_ups:
+            return LandingTiming(aligned, axis, spin_up_rad_s, min(spin_ups), landing_rate)
+
+    def miss(turn: float) -> float:  # [rad] of the tether's phase from level at touchdown
+        return abs(math.remainder(turn + phi0, math.pi))
+
+    # Out of reach: the reachable plan that meets the ground nearest level, if nearer
+    # than the spin it has (the tether's tilt grows with the phase missed).
+    nearest = [
+        (slowest * total, LandingTiming(aligned, axis, slowest, 0.0, slowest)),
+        (fastest * total, LandingTiming(aligned, axis, fastest, 0.0, fastest)),
+    ]
+    if gain > 0.0 and longest > 0.0:
+        nearest.append(
+            (
+                landing_rate * total + gain * longest,
+                LandingTiming(aligned, axis, spin_up_rad_s, longest, landing_rate),
+            )
+        )
+    turn, best = min(nearest, key=lambda option: miss(option[0]))
+    return best if miss(turn) < miss(rate_now * total) else None
+
+
+def _landing_geometry(  # noqa: PLR0917 (timed_landing_reference's own inputs)
+    orientation_wxyz: ArrayLike,
+    angular_velocity_rad_s: ArrayLike,
+    principal_inertia_kg_m2: ArrayLike,
+    touchdown_in_s: float,
+    spin_axis_body: ArrayLike,
+    tilt_tolerance_deg: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None:
+    """(momentum-aligned attitude, belly axis, tether phase from level phi0 [rad], spin
+    about the belly [rad/s]) of a landing worth timing, else None."""
     q = _quaternion(orientation_wxyz, "orientation_wxyz")
     w = _vector3(angular_velocity_rad_s, "angular_velocity_rad_s")
     inertia = _principal_inertia(principal_inertia_kg_m2, "principal_inertia_kg_m2")
@@ -328,14 +469,7 @@ def timed_landing_reference(
     coasting = rotation_matrix(propagate_attitude(aligned, axis * rate_now, touchdown_in_s))
     if abs(float(coasting[2, 0])) < math.sin(math.radians(tilt_tolerance_deg)):
         return None
-    k = round((rate_now * touchdown_in_s + phi0) / math.pi)
-    candidates = [(j * math.pi - phi0) / touchdown_in_s for j in (k - 1, k, k + 1)]
-    fastest = max(rate_max_rad_s, rate_now)
-    allowed = [c for c in candidates if 0.0 < c <= fastest]
-    if not allowed:
-        return None
-    rate = min(allowed, key=lambda c: (abs(c - rate_now), c))
-    return aligned, axis * rate
+    return aligned, axis, phi0, rate_now
 
 
 # --- geometry ------------------------------------------------------------------------------
@@ -387,6 +521,7 @@ class JumpLike(Protocol):
     duration_s: float
     hemi: str
     force_b_n: Sequence[float]
+    couple_n: float
 
 
 @dataclass(frozen=True)
@@ -395,7 +530,13 @@ class PlannedJump:
 
     ``hemi`` "both": the two hemis push at once, hemi a ``force_n`` and hemi b
     ``force_b_n`` (a launch that adds rotation); otherwise ``force_n`` is the whole
-    thrust and ``force_b_n`` is zero.
+    thrust and ``force_b_n`` is zero. ``couple_n`` [N] (hemi "both" or "auto"): each
+    hemi also pushes this much across the tether in the horizontal plane, in opposite
+    directions, hemi a towards ``z x t`` (``t`` the tether's horizontal direction from
+    hemi b to a): a couple of ``2 r_x couple_n`` about the vertical, counter-clockwise
+    seen from above for a positive one, whatever the robot's heading. A launch states
+    its spin in world forces (it starts from a known heading); a later jump, from
+    wherever the last landing turned the robot, states it with this.
     """
 
     time_ns: int  # [ns] earliest start
@@ -403,6 +544,7 @@ class PlannedJump:
     duration_ns: int  # [ns]
     hemi: str  # "a", "b", "auto" or "both"
     force_b_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N] world, hemi b's ("both")
+    couple_n: float = 0.0  # [N] each hemi's push across the tether (a spin about the vertical)
 
     @classmethod
     def from_spec(cls, spec: JumpLike) -> PlannedJump:
@@ -415,6 +557,7 @@ class PlannedJump:
             duration_ns=seconds_to_ns(float(spec.duration_s)),
             hemi=str(spec.hemi),
             force_b_n=(force_b[0], force_b[1], force_b[2]),
+            couple_n=float(getattr(spec, "couple_n", 0.0)),
         )
 
     @property
@@ -444,6 +587,13 @@ def validate_jump_plan(jumps: Sequence[PlannedJump]) -> tuple[PlannedJump, ...]:
             raise ValueError(f"{where}: force_b_n is for hemi 'both' only, got hemi {jump.hemi!r}")
         if jump.hemi not in JUMP_HEMIS:
             raise ValueError(f"{where}: hemi must be one of {JUMP_HEMIS}, got {jump.hemi!r}")
+        if not math.isfinite(jump.couple_n):
+            raise ValueError(f"{where}: couple_n must be finite, got {jump.couple_n}")
+        if jump.couple_n != 0.0 and jump.hemi not in ("both", "auto"):
+            raise ValueError(
+                f"{where}: couple_n needs both hemis (hemi 'both' or 'auto'), "
+                f"got hemi {jump.hemi!r}"
+            )
         if i > 0:
             previous = jumps[i - 1]
             if jump.time_ns < previous.time_ns + previous.duration_ns:
@@ -460,14 +610,23 @@ def jump_plan_from_arrays(
     durations_s: Sequence[float],
     hemis: Sequence[str],
     forces_b_n: Sequence[float] = (),
+    *,
+    couples_n: Sequence[float] = (),
 ) -> tuple[PlannedJump, ...]:
     """The plan from flat parameter arrays (3 force components per jump), validated.
 
     ``forces_b_n``: hemi b's force of each jump (3 per jump; for hemi "both"), or
-    empty (none). ``ValueError`` names the parameter (``jump_forces_n``, ...) that
-    does not fit.
+    empty (none); ``couples_n``: each jump's ``couple_n`` (one per jump), or empty
+    (none). ``ValueError`` names the parameter (``jump_forces_n``, ...) that does not
+    fit.
     """
     n = len(times_s)
+    if len(couples_n) == 0:
+        couples_n = [0.0] * n
+    if len(couples_n) != n:
+        raise ValueError(
+            f"jump_couples_n: expected {n} values (one per jump) or none, got {len(couples_n)}"
+        )
     if len(forces_b_n) == 0:
         forces_b_n = [0.0] * (3 * n)
     if len(forces_b_n) != 3 * n:
@@ -489,6 +648,7 @@ def jump_plan_from_arrays(
         ("jump_forces_n", forces_n),
         ("jump_forces_b_n", forces_b_n),
         ("jump_durations_s", durations_s),
+        ("jump_couples_n", couples_n),
     ):
         if not all(math.isfinite(float(v)) for v in values):
             raise ValueError(f"{name}: values must be finite, got {list(values)}")
@@ -515,6 +675,7 @@ def jump_plan_from_arrays(
                 float(forces_b_n[3 * i + 1]),
                 float(forces_b_n[3 * i + 2]),
             ),
+            couple_n=float(couples_n[i]),
         )
         for i in range(n)
     ]
@@ -535,6 +696,7 @@ def jump_plan_parameters(jumps: Iterable[JumpLike]) -> dict[str, list[float] | l
         "jump_forces_b_n": [
             float(f) for j in jumps for f in getattr(j, "force_b_n", (0.0, 0.0, 0.0))
         ],
+        "jump_couples_n": [float(getattr(j, "couple_n", 0.0)) for j in jumps],
     }
 
 
@@ -602,13 +764,34 @@ class GaitConfig:
         bounds=(0.0, 10.0),
         live=True,
     )
+    landing_spin_up_rad_s: float = parameter_field(
+        0.0,
+        "landing_timed: where no steady spin within the reel's reach times the landing, "
+        "spin up to this first, then back (0: steady spins only) [rad/s]",
+        bounds=(0.0, 10.0),
+        live=True,
+    )
+    landing_spin_up_settle_s: float = parameter_field(
+        1.5,
+        "landing_timed: a spin-up ends at least this long before the predicted touchdown, "
+        "for the reel to pay back out [s]",
+        bounds=(0.0, 10.0),
+        live=True,
+    )
+    landing_radius_x_max_m: float = parameter_field(
+        3.0,
+        "landing_timed: the farthest a hemi reels out from the centre of mass (half the "
+        "longest tether), which sets the slowest spin a timing can ask for [m]",
+        bounds=(0.1, 100.0),
+        live=True,
+    )
     attitude_reference: str = parameter_field(
         "integrate_w_ref",
         "attitude reference: hold the first measured attitude (initial), propagate it with "
         "w_ref (integrate_w_ref), or propagate it with w_ref after turning the body axis of "
-        "w_ref onto the measured angular momentum (momentum_aligned); landing_timed: as "
-        "integrate_w_ref from every lift-off, then from each flight's apex a spin about the "
-        "belly timed to meet the ground with the tether level",
+        "w_ref onto the measured angular momentum (momentum_aligned); landing_timed: from "
+        "every lift-off a spin about the belly timed to meet the ground with the tether "
+        "level, held to the touchdown (as integrate_w_ref when there is nothing to time)",
         choices=ATTITUDE_REFERENCE_MODES,
     )
 
@@ -679,6 +862,7 @@ def gait_config_from_parameters(params: Mapping[str, Any]) -> GaitConfig:
         list(params.get("jump_durations_s") or []),
         [str(h) for h in params.get("jump_hemis") or []],
         list(params.get("jump_forces_b_n") or []),
+        couples_n=list(params.get("jump_couples_n") or []),
     )
     values: dict[str, Any] = {}
     for name, default, _info in parameter_fields(GaitConfig):
@@ -769,6 +953,8 @@ class GaitPhaseMachine:
         self._at_rest_since_ns: int | None = None
         self._reference: AttitudeReference | None = None
         self._landing_reference_set = False
+        self._spin_up_end: AttitudeReference | None = None  # a timed landing's second spin
+        self._flight_timed = False  # this flight's landing is timed (landing_timed)
 
     @property
     def phase(self) -> GaitPhase | None:
@@ -886,10 +1072,21 @@ class GaitPhaseMachine:
         reference = None
         landing = phase in _LANDING_PHASES
         timed = cfg.attitude_reference == "landing_timed"
+        if contact_event is not None:
+            self._spin_up_end = None
+            self._flight_timed = False
         if timed and contact_event == "liftoff":  # a new flight: time its landing
             assert inertia is not None  # needs_principal_inertia
-            plan = timed_landing_reference(q, rate, inertia, touchdown_in_s)
+            plan = self._timed_landing(
+                t_ns,
+                q=q,
+                rate=rate,
+                inertia=inertia,
+                radius_x=radius_x,
+                touchdown_in_s=touchdown_in_s,
+            )
             if plan is not None:
+                self._flight_timed = True
                 self._landing_reference_set = self._landing_reference_set or landing
                 reference = AttitudeReference(
                     stamp_ns=t_ns, w_ref_rad_s=plan[1], q_ref_wxyz=plan[0], propagate=True
@@ -902,6 +1099,17 @@ class GaitPhaseMachine:
                 )
             elif not landing:  # nothing to time: the flight reference, from here
                 reference = self._new_reference(t_ns, q, rate, inertia, False)
+        if (
+            reference is None
+            and self._spin_up_end is not None
+            and t_ns >= self._spin_up_end.stamp_ns
+        ):
+            reference, self._spin_up_end = self._spin_up_end, None
+            _LOG.debug("timed landing: spin-up over at t = %d ns", t_ns)
+        if reference is None and landing and self._flight_timed and not self._landing_reference_set:
+            # Landing starts in a timed flight: the timing holds to the touchdown.
+            self._landing_reference_set = True
+            reference = self._reference
         if reference is None and (first or (landing and not self._landing_reference_set)):
             reference = self._new_reference(t_ns, q, rate, inertia, landing)
         if reference is not None:
@@ -934,6 +1142,49 @@ class GaitPhaseMachine:
         )
 
     # -- internals -------------------------------------------------------------------------
+    def _timed_landing(
+        self,
+        t_ns: int,
+        *,
+        q: NDArray[np.float64],
+        rate: NDArray[np.float64],
+        inertia: NDArray[np.float64],
+        radius_x: float,
+        touchdown_in_s: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The first reference of a timed landing; a spin-up's end is kept for later."""
+        cfg = self.config
+        if cfg.landing_spin_up_rad_s <= 0.0:
+            return timed_landing_reference(q, rate, inertia, touchdown_in_s)
+        # the moment about the belly scales with r_x^2 (the hemis' masses dominate it)
+        reach = min(1.0, radius_x / cfg.landing_radius_x_max_m) ** 2
+        plan = timed_landing_plan(
+            q,
+            rate,
+            inertia,
+            touchdown_in_s,
+            slowest_fraction=max(reach, 1e-6),
+            spin_up_rad_s=cfg.landing_spin_up_rad_s,
+            settle_s=cfg.landing_spin_up_settle_s,
+        )
+        if plan is None:
+            return None
+        if plan.spin_up_s > 0.0:
+            q_switch, w_switch = plan.switch()
+            self._spin_up_end = AttitudeReference(
+                stamp_ns=t_ns + seconds_to_ns(plan.spin_up_s),
+                w_ref_rad_s=w_switch,
+                q_ref_wxyz=q_switch,
+                propagate=True,
+            )
+            _LOG.debug(
+                "landing timed with a spin-up: %.3f rad/s for %.2f s, then %.3f rad/s",
+                plan.spin_up_rad_s,
+                plan.spin_up_s,
+                plan.landing_rate_rad_s,
+            )
+        return plan.attitude_wxyz, plan.spin_axis_body * plan.spin_up_rad_s
+
     def _debounce_contact(self, t_ns: int, stance: tuple[bool, bool], first: bool) -> str | None:
         """Update the debounced ground contact; the event of this tick, if any.
 
@@ -1080,19 +1331,32 @@ def _split_jump_wrench(
     """Force [N] and torque about the COM [Nm] of a thrust through one hemi, shared by
     both ("auto") or pushed by both at once, each its own force ("both").
 
-    ``"auto"`` shares the force equally between the two hemis (both in stance).
+    ``"auto"`` shares the force equally between the two hemis (both in stance). Either
+    adds the jump's couple (:class:`PlannedJump`, :func:`spin_couple_n`).
     """
     if hemi == "both":
-        force_a, torque_a = jump_wrench(jump.force_n, orientation_wxyz, radius_x_m, "a")
-        force_b, torque_b = jump_wrench(jump.force_b_n, orientation_wxyz, radius_x_m, "b")
-        return force_a + force_b, torque_a + torque_b
-    if hemi != "auto":
+        forces = [np.asarray(jump.force_n, dtype=float), np.asarray(jump.force_b_n, dtype=float)]
+    elif hemi == "auto":
+        forces = [np.asarray(jump.force_n, dtype=float) / 2.0] * 2
+    else:
         return jump_wrench(jump.force_n, orientation_wxyz, radius_x_m, hemi)
-    half = np.asarray(jump.force_n, dtype=float) / 2.0
+    couple = spin_couple_n(orientation_wxyz, jump.couple_n)
     force = np.zeros(3)
     torque = np.zeros(3)
-    for side in names.HEMIS:
-        f, tau = jump_wrench(half, orientation_wxyz, radius_x_m, side)
+    for side, base, sign in zip(names.HEMIS, forces, (1.0, -1.0), strict=True):
+        f, tau = jump_wrench(base + sign * couple, orientation_wxyz, radius_x_m, side)
         force += f
         torque += tau
     return force, torque
+
+
+def spin_couple_n(orientation_wxyz: ArrayLike, couple_n: float) -> NDArray[np.float64]:
+    """Hemi a's share [N] (world) of a couple about the vertical: ``couple_n`` along
+    ``z x t``, ``t`` the tether's horizontal direction (body x, hemi b to a); hemi b
+    pushes the opposite. Zero for a tether along the vertical (no lever about it)."""
+    tether = rotation_matrix(_quaternion(orientation_wxyz, "orientation_wxyz"))[:, 0]
+    across = np.array([-tether[1], tether[0], 0.0])  # z x tether
+    size = float(np.linalg.norm(across))
+    if couple_n == 0.0 or size < 1e-6:
+        return np.zeros(3)
+    return across * (couple_n / size)

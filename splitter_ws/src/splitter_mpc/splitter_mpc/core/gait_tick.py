@@ -89,6 +89,12 @@ class GaitNodeSettings:
         "hemi b's thrust per planned jump, world frame, 3 values per jump, for hemi 'both' "
         "(jump_forces_n is then hemi a's); empty: none [N]",
     )
+    jump_couples_n: tuple[float, ...] = parameter_field(
+        (),
+        "each hemi's push across the tether in the horizontal plane per planned jump (a "
+        "spin about the vertical whatever the heading; hemi 'both' or 'auto'), one per "
+        "jump; empty: none [N]",
+    )
     control_period_s: float = parameter_field(
         0.01, "control tick period: ticks answered are the multiples of it [s]", bounds=(0.001, 1.0)
     )
