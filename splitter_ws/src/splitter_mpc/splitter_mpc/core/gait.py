@@ -884,6 +884,13 @@ class AttitudeReference:
     q_ref_wxyz: NDArray[np.float64]  # world <- base at stamp_ns
     propagate: bool  # True: q_ref moves with w_ref; False: q_ref is held
 
+    def restamped(self, t_ns: int) -> AttitudeReference:
+        """The same reference stated at ``t_ns`` (its attitude there): a consumer admits
+        only references stamped at or after the tick it last answered."""
+        return AttitudeReference(
+            t_ns, self.w_ref_rad_s.copy(), self.attitude_at(t_ns), self.propagate
+        )
+
     def attitude_at(self, t_ns: int) -> NDArray[np.float64]:
         """The attitude reference at ``t_ns``."""
         if not self.propagate:
@@ -1104,12 +1111,13 @@ class GaitPhaseMachine:
             and self._spin_up_end is not None
             and t_ns >= self._spin_up_end.stamp_ns
         ):
-            reference, self._spin_up_end = self._spin_up_end, None
+            reference, self._spin_up_end = self._spin_up_end.restamped(t_ns), None
             _LOG.debug("timed landing: spin-up over at t = %d ns", t_ns)
         if reference is None and landing and self._flight_timed and not self._landing_reference_set:
             # Landing starts in a timed flight: the timing holds to the touchdown.
             self._landing_reference_set = True
-            reference = self._reference
+            assert self._reference is not None  # set at the lift-off
+            reference = self._reference.restamped(t_ns)
         if reference is None and (first or (landing and not self._landing_reference_set)):
             reference = self._new_reference(t_ns, q, rate, inertia, landing)
         if reference is not None:
