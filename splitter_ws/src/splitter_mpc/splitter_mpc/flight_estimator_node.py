@@ -198,7 +198,10 @@ class FlightEstimatorNode(Node):
         pub[names.ESTIMATE_INERTIA].publish(
             vector3_to_msg(t, e.principal_inertia_kg_m2, names.BASE_FRAME)
         )
-        imu = imu_to_msg(t, e.orientation_wxyz, e.angular_velocity_rad_s, (0.0, 0.0, 0.0))
+        # the accelerometer passes through: the allocator reads support from it
+        imu = imu_to_msg(
+            t, e.orientation_wxyz, e.angular_velocity_rad_s, self.tick.specific_force_m_s2
+        )
         imu.angular_velocity_covariance = [float(v) for v in e.covariance[0:3, 0:3].ravel()]
         pub[names.ESTIMATE_IMU].publish(imu)
         if t % self._diagnostics_ns == 0:

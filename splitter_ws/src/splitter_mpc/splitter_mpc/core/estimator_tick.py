@@ -63,6 +63,9 @@ class EstimatorTick:
         self.ticks = TickAssembler(int(control_period_ns), TICK_INPUTS)
         self.stamps = StampGate()  # the node's stamp rules per topic
         self.last: FlightEstimate | None = None
+        # [m/s^2] body, the accelerometer of the last tick estimated: passed on with the
+        # estimate (the allocator tells from it whether the feet hold the robot)
+        self.specific_force_m_s2: NDArray[np.float64] = np.zeros(3)
 
     def add(self, topic: str, t_ns: int, value: object | None) -> FlightEstimate | None:
         """A gyro sample or a joint reading (None: rejected) stamped ``t_ns``.
@@ -99,6 +102,7 @@ class EstimatorTick:
                 <= self.estimator.config.stance_force_threshold_n
             )
         )
+        self.specific_force_m_s2 = np.array(gyro.specific_force_m_s2, dtype=float)
         if not self.estimator.started:
             self.estimator.start(t_ns, gyro.angular_velocity_rad_s, radii, gyro.orientation_wxyz)
         self.last = self.estimator.update(
