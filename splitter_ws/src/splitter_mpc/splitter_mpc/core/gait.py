@@ -77,6 +77,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from splitter_model.model import RobotModel
 from splitter_model.rotations import quaternion_multiply
 from splitter_model.rotations import quaternion_to_matrix as rotation_matrix
 from splitter_msgs_py import names
@@ -779,7 +780,7 @@ class GaitConfig:
         live=True,
     )
     landing_radius_x_max_m: float = parameter_field(
-        3.0,
+        RobotModel().radius_x_max_m,
         "landing_timed: the farthest a hemi reels out from the centre of mass (half the "
         "longest tether), which sets the slowest spin a timing can ask for [m]",
         bounds=(0.1, 100.0),
