@@ -14,6 +14,7 @@ from splitter_sim.core.legs import (
     LANDING_SPEED_M_S,
     LegImpedance,
     foot_hold_force,
+    full_stroke_stop_force,
     leg_normal_force,
     leg_stance_force,
     slipped_anchor,
@@ -56,7 +57,48 @@ def test_the_simulator_defaults_are_these_legs() -> None:
         posture_weight_n=9.0 * config.gravity_m_s2,
         ride_compression_m=0.4 - 0.2,
         crouch_compression_m=0.4 - 0.02,
+        stop_mass_kg=9.0,
+        stop_gravity_m_s2=config.gravity_m_s2,
+        stroke_m=0.4,
     )
+    assert replace(config, leg_full_stroke_stop=False).legs.stop_mass_kg == 0.0
+
+
+# --- the whole stroke (module docstring "The whole stroke") ----------------------------------
+STOP = replace(LEGS, stop_mass_kg=9.0, stop_gravity_m_s2=1.62, stroke_m=0.4, stop_reserve_m=0.01)
+
+
+def test_the_whole_stroke_stop_is_the_force_that_stops_at_the_stroke_end() -> None:
+    # 2 m/s down with 0.09 m of stroke left: m (g + v^2 / 2 d).
+    assert full_stroke_stop_force(0.3, -2.0, STOP) == pytest.approx(9.0 * (1.62 + 4.0 / 0.18))
+    assert leg_normal_force(0.3, -2.0, STOP) == STOP.force_max_n  # 214 N, capped
+    # Where the damper is the stronger (early in a stop), the law is unchanged.
+    assert leg_normal_force(0.05, -1.0, STOP) == leg_normal_force(0.05, -1.0, LEGS)
+    # Slow near the stroke's end, the damper alone would let it strike: 0.5 m/s with 1 cm
+    # left (besides the reserve) takes 9 (1.62 + 0.25 / 0.02) = 127.1 N, the damper 115.2 N.
+    assert leg_normal_force(0.38, -0.5, LEGS) == pytest.approx(40.0 * 0.38 + 100.0)
+    assert leg_normal_force(0.38, -0.5, STOP) == pytest.approx(9.0 * (1.62 + 0.25 / 0.02))
+    # No stroke left: the cap; going up, or off: nothing of its own.
+    assert full_stroke_stop_force(0.395, -0.1, STOP) == STOP.force_max_n
+    assert full_stroke_stop_force(0.3, 0.5, STOP) == 0.0
+    assert full_stroke_stop_force(0.3, -2.0, LEGS) == 0.0
+    # A crouch sinks to the stroke's end on purpose: the posture's law alone.
+    assert LUNAR.stop_mass_kg == 9.0  # the simulator's default: on
+    no_stop = replace(LUNAR, stop_mass_kg=0.0)
+    assert leg_normal_force(0.385, -0.6, LUNAR, crouch=True) == leg_normal_force(
+        0.385, -0.6, no_stop, crouch=True
+    )
+    assert leg_normal_force(0.385, -0.6, LUNAR) == LUNAR.force_max_n
+    assert leg_normal_force(0.385, -0.6, no_stop) < 120.0
+
+
+@SETTINGS
+@given(compression=COMPRESSION, speed=st.floats(0.0, 20.0))
+def test_the_whole_stroke_stop_never_weakens_the_law_nor_passes_the_cap(
+    compression: float, speed: float
+) -> None:
+    with_stop = leg_normal_force(compression, -speed, STOP)
+    assert leg_normal_force(compression, -speed, LEGS) <= with_stop <= STOP.force_max_n
 
 
 # --- the ride posture (module docstring "Ride height") ---------------------------------------

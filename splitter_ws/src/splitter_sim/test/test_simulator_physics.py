@@ -404,15 +404,17 @@ def test_thrust_through_one_hemi_spins_the_robot() -> None:
     assert s.angular_velocity_rad_s[1] > 0.0  # hemi b at -x pushed up: spin about +y
 
 
-def _lunar_drop(compliant_legs: bool) -> tuple[SimConfig, list]:
-    """Level, the lowest masses 0.45 m above the ground, 3 m/s down; 10 s of states."""
-    config = SimConfig(gravity_m_s2=1.62, compliant_legs=compliant_legs)
+def _lunar_drop(
+    compliant_legs: bool, speed_m_s: float = 3.0, **legs: bool
+) -> tuple[SimConfig, list]:
+    """Level, the lowest masses 0.45 m above the ground, ``speed_m_s`` down; 10 s of states."""
+    config = SimConfig(gravity_m_s2=1.62, compliant_legs=compliant_legs, **legs)
     probe = Simulator(MODEL, config, InitialState(position_m=(0.0, 0.0, 10.0)))
     lowest = float(probe.state().mass_positions_world_m[:, 2].min()) - 10.0  # [m] from the COM
     sim = Simulator(
         MODEL,
         config,
-        InitialState(position_m=(0.0, 0.0, 0.45 - lowest), velocity_m_s=(0.0, 0.0, -3.0)),
+        InitialState(position_m=(0.0, 0.0, 0.45 - lowest), velocity_m_s=(0.0, 0.0, -speed_m_s)),
     )
     states = []
     for _ in range(int(10.0 / DT)):
@@ -450,6 +452,21 @@ def test_lunar_drop_onto_compliant_legs_stays_within_their_force_limit() -> None
     assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in rigid) > 1000.0
     assert min(float(s.mass_positions_world_m[:, 2].min()) for s in rigid) < 0.0
     assert not any(s.leg_force_n.any() for s in rigid)
+
+
+def test_the_legs_spend_their_whole_stroke_on_a_touchdown_the_damper_cannot_stop() -> None:
+    """3.88 m/s down: a constant 190 N stops a 9 kg hemi within the 0.4 m stroke
+    (sqrt(2 s (F / m - g)) = 3.95 m/s), the damper alone (saturated only above 0.95 m/s)
+    from 3.86 m/s at most: with the whole-stroke stop the masses clear the ground, without
+    it they strike it, far above the limbs' limit."""
+    config, states = _lunar_drop(compliant_legs=True, speed_m_s=3.88)
+    assert config.leg_full_stroke_stop
+    peak = max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in states)
+    assert peak <= config.leg_force_max_n + 1e-9
+    assert min(float(s.mass_positions_world_m[:, 2].min()) for s in states) > 0.0
+    _, damper = _lunar_drop(compliant_legs=True, speed_m_s=3.88, leg_full_stroke_stop=False)
+    assert min(float(s.mass_positions_world_m[:, 2].min()) for s in damper) < 0.0
+    assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in damper) > 196.0
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -50,6 +50,20 @@ the hemi sinks under its weight, the legs still carrying half of it
 (``CROUCH_LOAD_FRACTION``: 0.67 s for 0.18 m on the Moon, the feet kept loaded), and
 the push starts from there, over the stroke a crouched robot has.
 
+The whole stroke (``stop_mass_kg`` > 0). The damper alone saturates the cap only
+above ``force_max / c`` (0.95 m/s): below it the force falls off and the end of a fast
+stop is spent at less than the cap, so a 9 kg hemi bottoms its 0.4 m stroke from
+3.86 m/s where a constant 190 N stops it from 3.95 m/s
+(``v_max = sqrt(2 s (F_max / m - g))``). A hemi coming down is therefore also given
+the force that stops it at the end of the stroke, ``m (g + v^2 / (2 d))`` with ``d``
+the stroke left (less ``stop_reserve_m``), wherever that is stronger than the law
+above; ``m`` is the nominal hemi's mass the leg controller knows (not the simulated
+robot's). It is a feedback on the stroke left: with a heavier hemi than ``m`` the
+required force grows as ``d`` shrinks, up to the cap. A touchdown the damper stops
+within the stroke is not changed: the law is stronger all along it (the nominal
+3.63 m/s lunar touchdown uses 0.36 m either way). A crouch (below) is not stopped: it
+lowers the hemi to the stroke's end on purpose.
+
 Posture about the tether axis. The two hemis stand on the tether axis, so forces at
 the hemi bodies alone would leave the robot free to roll about it (measured: a robot
 standing after a spinning touchdown rolled over in 1.5 s, its y limb tips caught by
@@ -94,6 +108,11 @@ class LegImpedance:
     posture_weight_n: float = 0.0  # W [N] the nominal hemi's weight the posture holds
     ride_compression_m: float = 0.2  # x_ride [m]
     crouch_compression_m: float = 0.38  # [m] where the legs crouch before a push
+    # The whole stroke (module docstring); stop_mass_kg 0: off.
+    stop_mass_kg: float = 0.0  # [kg] the nominal hemi the stop is computed for
+    stop_gravity_m_s2: float = 0.0  # [m/s^2] gravity the stop also holds
+    stroke_m: float = 0.4  # [m] the legs' stroke
+    stop_reserve_m: float = 0.01  # [m] of the stroke the stop keeps (one 5 ms step at 2 m/s)
 
     def __post_init__(self) -> None:
         for name in (
@@ -110,6 +129,10 @@ class LegImpedance:
             "posture_weight_n",
             "ride_compression_m",
             "crouch_compression_m",
+            "stop_mass_kg",
+            "stop_gravity_m_s2",
+            "stroke_m",
+            "stop_reserve_m",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -163,8 +186,10 @@ def leg_normal_force(
     it is stronger.
     """
     law = legs.stiffness_n_m * compression_m - legs.damping_n_s_m * velocity_along_m_s
+    # a crouch lowers the hemi on purpose, to the stroke's end: no stop
+    stop = 0.0 if crouch else full_stroke_stop_force(compression_m, velocity_along_m_s, legs)
     if legs.posture_stiffness_n_m == 0.0:
-        return min(max(law, 0.0), legs.force_max_n)
+        return min(max(law, stop, 0.0), legs.force_max_n)
     target = legs.crouch_compression_m if crouch else legs.ride_compression_m
     normal = (
         legs.posture_weight_n
@@ -176,7 +201,23 @@ def leg_normal_force(
     landing = min(max((-velocity_along_m_s - LANDING_SPEED_M_S[0]) / _LANDING_BLEND, 0.0), 1.0)
     if landing > 0.0 and law > normal:
         normal += landing * (law - normal)
-    return min(max(normal, 0.0), legs.force_max_n)
+    return min(max(normal, stop, 0.0), legs.force_max_n)
+
+
+def full_stroke_stop_force(
+    compression_m: float, velocity_along_m_s: float, legs: LegImpedance
+) -> float:
+    """Force [N] that stops a hemi coming down at ``-velocity_along_m_s`` [m/s] at the
+    end of the stroke (less the reserve): ``m (g + v^2 / (2 d))``, or ``force_max_n``
+    with no stroke left; 0 going up or with ``stop_mass_kg`` 0 (module docstring,
+    "The whole stroke")."""
+    if legs.stop_mass_kg == 0.0 or velocity_along_m_s >= 0.0:
+        return 0.0
+    left = legs.stroke_m - legs.stop_reserve_m - compression_m
+    if left <= 0.0:
+        return legs.force_max_n
+    speed = -velocity_along_m_s
+    return legs.stop_mass_kg * (legs.stop_gravity_m_s2 + speed * speed / (2.0 * left))
 
 
 def leg_stance_force(

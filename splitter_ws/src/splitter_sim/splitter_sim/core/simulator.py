@@ -124,7 +124,7 @@ _NON_NEGATIVE = (
     "command_extrapolation_s",
     "knot_blend_s",
 )
-_BOOLEAN = ("ground_contact", "compliant_legs")
+_BOOLEAN = ("ground_contact", "compliant_legs", "leg_full_stroke_stop")
 
 
 def _finite_force(value: ArrayLike, what: str) -> tuple[float, float, float]:
@@ -259,9 +259,18 @@ class SimConfig:
         60.0, "damping of the legs' ride posture along the leg axis [N s/m]", bounds=_GAIN_RANGE
     )
     leg_posture_mass_kg: float = parameter_field(
-        9.0, "hemi mass whose weight the ride posture holds (the nominal hemi) [kg]",
+        9.0, "the nominal hemi's mass the leg controller knows: the weight the ride "
+        "posture holds, the mass the whole-stroke stop is computed for [kg]",
         bounds=(0.0, 1e3),
     )  # fmt: skip
+    # splitter_sim.core.legs ("The whole stroke"): a fast touchdown also gets the force
+    # that stops it at the end of the stroke: a 9 kg hemi from 3.95 m/s instead of 3.86.
+    leg_full_stroke_stop: bool = parameter_field(
+        True,
+        "a hemi coming down also gets the force that stops it at the end of the stroke "
+        "(m (g + v^2 / 2 d), the nominal hemi's mass), where that is stronger than the "
+        "spring and damper",
+    )
     leg_ride_height_m: float = parameter_field(
         0.2,
         "height of a standing hemi's lowest mass above the ground that the posture holds, "
@@ -383,6 +392,9 @@ class SimConfig:
             posture_weight_n=self.leg_posture_mass_kg * self.gravity_m_s2,
             ride_compression_m=self.thrust_stroke_m - self.leg_ride_height_m,
             crouch_compression_m=self.thrust_stroke_m - self.leg_crouch_height_m,
+            stop_mass_kg=self.leg_posture_mass_kg if self.leg_full_stroke_stop else 0.0,
+            stop_gravity_m_s2=self.gravity_m_s2,
+            stroke_m=self.thrust_stroke_m,
         )
 
     @property
