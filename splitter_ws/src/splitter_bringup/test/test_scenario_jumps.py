@@ -127,6 +127,29 @@ def test_the_legs_posture_reaches_the_simulator_in_both_backends(tmp_path: Path)
     assert sim_config(load_scenario("lunar_jumping")).legs.posture_stiffness_n_m == 0.0
 
 
+def test_the_ride_height_reaches_the_simulator_in_both_backends(tmp_path: Path) -> None:
+    from splitter_bringup.scenario.graph_config import simulator_parameters
+    from splitter_bringup.scenario.simulation import sim_config
+
+    path = tmp_path / "ride.yaml"
+    path.write_text(
+        "name: p\nduration_s: 1.0\ncompliant_legs: true\nleg_posture_stiffness_n_m: 300\n"
+        "leg_ride_height_m: 0.3\n"
+    )
+    scenario = load_scenario(path)
+    assert sim_config(scenario).legs.ride_compression_m == pytest.approx(0.1)
+    assert simulator_parameters(scenario, False, 1.0)["leg_ride_height_m"] == 0.3
+    assert sim_config(load_scenario("lunar_jumping")).legs.ride_compression_m == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("height", ["-0.1", "0.41", "nan", "high"])
+def test_a_ride_height_outside_the_stroke_names_its_field(tmp_path: Path, height: str) -> None:
+    path = tmp_path / "ride.yaml"
+    path.write_text(f"name: p\nduration_s: 1.0\nleg_ride_height_m: {height}\n")
+    with pytest.raises(ScenarioError, match="leg_ride_height_m"):
+        load_scenario(path)
+
+
 COUPLE = "{time_s: 0.0, hemi: auto, force_n: [160, 0, 320], couple_n: 52, duration_s: 0.6}"
 
 

@@ -158,6 +158,8 @@ class Scenario:
     # [N/m] the legs' ride posture (SimConfig's field; splitter_sim.core.legs "Ride
     # height"): 0, off, the robot stands crouched
     leg_posture_stiffness_n_m: float = 0.0
+    # [m] the height the ride posture stands a hemi's lowest mass at (SimConfig's field)
+    leg_ride_height_m: float = 0.2
     # the ground (splitter_model.terrain): level z = 0 unless the scenario's ``ground``
     terrain: Terrain = FLAT
     friction_coefficient: float = 0.8  # [-] of the ground (SimConfig's field)
@@ -391,6 +393,17 @@ def _leg_posture(data: Mapping[str, Any]) -> float:
     return stiffness
 
 
+def _leg_ride_height(data: Mapping[str, Any]) -> float:
+    """``leg_ride_height_m`` [m] in [0, the 0.4 m stroke] (SimConfig's range), default 0.2."""
+    height = _finite(data, "leg_ride_height_m", SimConfig.leg_ride_height_m)
+    if not 0.0 <= height <= SimConfig.thrust_stroke_m:
+        raise ScenarioError(
+            f"leg_ride_height_m: must be in [0, {SimConfig.thrust_stroke_m:g}] m (within the "
+            f"legs' stroke), got {height!r}"
+        )
+    return height
+
+
 def _finite(data: Mapping[str, Any], key: str, default: float) -> float:
     value = data.get(key, default)
     try:
@@ -435,6 +448,7 @@ SCENARIO_FIELDS = (
     "compliant_legs",
     "leg_cone_half_angle_deg",
     "leg_posture_stiffness_n_m",
+    "leg_ride_height_m",
     "ground",
     "initial",
     "controller",
@@ -644,6 +658,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         compliant_legs=bool(d.get("compliant_legs", False)),
         leg_cone_half_angle_deg=_leg_cone(d),
         leg_posture_stiffness_n_m=_leg_posture(d),
+        leg_ride_height_m=_leg_ride_height(d),
         terrain=terrain,
         friction_coefficient=friction,
         faults=_faults(d.get("faults")),

@@ -115,6 +115,7 @@ def simulator_parameters(
         "compliant_legs": bool(scenario.compliant_legs),
         "leg_cone_half_angle_deg": float(scenario.leg_cone_half_angle_deg),
         "leg_posture_stiffness_n_m": float(scenario.leg_posture_stiffness_n_m),
+        "leg_ride_height_m": float(scenario.leg_ride_height_m),
         **ground_parameters(scenario),
         **{name: list(values) for name, values in fault_parameters(scenario.faults).items()},
         "friction_coefficient": float(scenario.friction_coefficient),

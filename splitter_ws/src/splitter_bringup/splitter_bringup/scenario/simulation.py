@@ -47,6 +47,7 @@ def sim_config(scenario: Scenario) -> SimConfig:
         compliant_legs=bool(scenario.compliant_legs),
         leg_cone_half_angle_deg=float(scenario.leg_cone_half_angle_deg),
         leg_posture_stiffness_n_m=float(scenario.leg_posture_stiffness_n_m),
+        leg_ride_height_m=float(scenario.leg_ride_height_m),
         friction_coefficient=float(scenario.friction_coefficient),
         ground_slope_deg=float(scenario.terrain.slope_deg),
         ground_slope_azimuth_deg=float(scenario.terrain.slope_azimuth_deg),
