@@ -13,7 +13,9 @@ from splitter_bringup.analysis.campaign import draw_seeds
 from splitter_bringup.analysis.jump_campaign import (
     CARTWHEEL_TILT_DEG,
     FORCE_LIMIT_N,
+    NOMINAL_TOUCHDOWN_SPEED_M_S,
     OUTCOMES,
+    STEP_REACH_M,
     JumpRanges,
     failure_mode,
     jumps_for_draw,
@@ -24,6 +26,9 @@ from splitter_bringup.analysis.jump_campaign import (
 )
 from splitter_bringup.cli.main import main as splitter
 from splitter_bringup.scenario.definition import JumpSpec, load_scenario
+from splitter_model.model import GRAVITY_PRESETS, RobotModel
+from splitter_sim.core.legs import stroke_left_after_stop_m
+from splitter_sim.core.simulator import SimConfig
 
 LAUNCH = JumpSpec(0.0, (80.0, 52.0, 160.0), 0.6, "both", (80.0, -52.0, 160.0))
 SECOND = JumpSpec(5.0, (160.0, 0.0, 320.0), 0.6, "auto")
@@ -45,6 +50,25 @@ def test_each_draw_is_a_pure_function_of_its_seed_within_its_ranges() -> None:
     # the draws spread over their ranges (not stuck at one value)
     assert scales.std() > 0.04 and tilts.std() > 2.0
     assert len({d.seed for d in draws}) == 200
+
+
+def test_the_default_steps_are_within_what_the_stroke_keeps_at_a_nominal_touchdown() -> None:
+    """The narrowed step range (module docstring): the simulator's legs, the robot's hemi,
+    the Moon; the issue's 0.2 m is three times what the stroke can keep."""
+    legs = SimConfig(gravity_m_s2=GRAVITY_PRESETS["moon"]).legs
+    kept_m = stroke_left_after_stop_m(
+        NOMINAL_TOUCHDOWN_SPEED_M_S,
+        RobotModel().hemi_mass_kg,
+        legs.force_max_n,
+        GRAVITY_PRESETS["moon"],
+        SimConfig().thrust_stroke_m,
+    )
+    assert JumpRanges().step_height_m == STEP_REACH_M
+    assert kept_m - 0.005 < STEP_REACH_M <= kept_m
+    assert 0.2 > 3.0 * kept_m
+    draws = [make_jump_draw(k, s, 2, JumpRanges()) for k, s in enumerate(draw_seeds(0, 200))]
+    heights = np.array([d.step_height_m for d in draws])
+    assert heights.max() <= STEP_REACH_M and heights.max() > 0.9 * STEP_REACH_M
 
 
 def test_a_draw_with_no_spread_flies_the_scenarios_pushes_per_hemi() -> None:

@@ -18,6 +18,7 @@ from splitter_sim.core.legs import (
     leg_normal_force,
     leg_stance_force,
     slipped_anchor,
+    stroke_left_after_stop_m,
 )
 from splitter_sim.core.simulator import SimConfig
 
@@ -90,6 +91,21 @@ def test_the_whole_stroke_stop_is_the_force_that_stops_at_the_stroke_end() -> No
     )
     assert leg_normal_force(0.385, -0.6, LUNAR) == LUNAR.force_max_n
     assert leg_normal_force(0.385, -0.6, no_stop) < 120.0
+
+
+def test_the_stroke_left_after_a_stop_at_the_cap() -> None:
+    """s - v^2 / (2 (F / m - g)): the nominal lunar touchdown keeps 6 cm, none at v_max."""
+    g = 9.80665 / 6.0  # [m/s^2]
+    assert stroke_left_after_stop_m(3.63, 9.0, 190.0, g, 0.4) == pytest.approx(
+        0.4 - 3.63**2 / (2.0 * (190.0 / 9.0 - g))
+    )
+    assert stroke_left_after_stop_m(3.63, 9.0, 190.0, g, 0.4) == pytest.approx(0.0617, abs=1e-4)
+    v_max = math.sqrt(2.0 * 0.4 * (190.0 / 9.0 - g))  # [m/s] 3.95
+    assert stroke_left_after_stop_m(v_max, 9.0, 190.0, g, 0.4) == pytest.approx(0.0, abs=1e-12)
+    assert stroke_left_after_stop_m(4.2, 9.0, 190.0, g, 0.4) < 0.0  # the stroke cannot
+    assert stroke_left_after_stop_m(0.0, 9.0, 190.0, g, 0.4) == 0.4
+    with pytest.raises(ValueError, match="force_max_n"):
+        stroke_left_after_stop_m(3.0, 9.0, 9.0 * g, g, 0.4)  # the cap only holds the weight
 
 
 @SETTINGS

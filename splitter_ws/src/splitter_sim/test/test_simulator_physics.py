@@ -19,6 +19,7 @@ from scipy.special import ellipk
 from splitter_model.actuators import TETHER_INDEX
 from splitter_model.kinematics import joint_positions_from_radii
 from splitter_model.model import GRAVITY_PRESETS, RobotModel
+from splitter_sim.core.legs import stroke_left_after_stop_m
 from splitter_sim.core.simulator import InitialState, SimConfig, Simulator
 
 MODEL = RobotModel()
@@ -467,6 +468,26 @@ def test_the_legs_spend_their_whole_stroke_on_a_touchdown_the_damper_cannot_stop
     _, damper = _lunar_drop(compliant_legs=True, speed_m_s=3.88, leg_full_stroke_stop=False)
     assert min(float(s.mass_positions_world_m[:, 2].min()) for s in damper) < 0.0
     assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in damper) > 196.0
+
+
+@pytest.mark.parametrize("speed_m_s", [3.0, 3.63])
+def test_no_leg_stop_keeps_more_stroke_than_the_cap_all_the_way(speed_m_s: float) -> None:
+    """Where a touchdown has stopped, the lowest mass is no higher above the ground than
+    the stroke a stop at the cap all the way leaves (``stroke_left_after_stop_m``): the
+    clearance a step must stay under (the jumping campaign's step range)."""
+    config, states = _lunar_drop(compliant_legs=True, speed_m_s=speed_m_s)
+    entry_m_s = math.sqrt(speed_m_s**2 + 2.0 * config.gravity_m_s2 * 0.05)  # [m/s] at 0.4 m
+    hemi_kg = MODEL.hemi_mass_kg
+    bound_m = stroke_left_after_stop_m(
+        entry_m_s, hemi_kg, config.leg_force_max_n, config.gravity_m_s2, config.thrust_stroke_m
+    )
+    assert 0.0 < bound_m < config.thrust_stroke_m
+    touched = next(i for i, s in enumerate(states) if s.in_contact.any())
+    stopped = next(i for i in range(touched, len(states)) if states[i].velocity_m_s[2] > -0.01)
+    lowest_m = float(states[stopped].mass_positions_world_m[:, 2].min())
+    peak = max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in states)
+    assert peak <= config.leg_force_max_n + 1e-9
+    assert 0.0 < lowest_m <= bound_m
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -218,7 +218,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=JumpRanges.step_height_m,
         metavar="M",
         help="a step across the path within [0, M] high, its edge anywhere along the path "
-        f"(default {JumpRanges.step_height_m})",
+        f"(default {JumpRanges.step_height_m}: what the legs' stroke keeps under the body "
+        "at a nominal touchdown; higher steps can be struck whatever the controller)",
     )
     faults = parser.add_argument_group("faults (splitter_bringup.analysis.fault_draws)")
     faults.add_argument(

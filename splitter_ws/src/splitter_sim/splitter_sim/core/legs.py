@@ -220,6 +220,29 @@ def full_stroke_stop_force(
     return legs.stop_mass_kg * (legs.stop_gravity_m_s2 + speed * speed / (2.0 * left))
 
 
+def stroke_left_after_stop_m(
+    touchdown_speed_m_s: float,
+    hemi_mass_kg: float,
+    force_max_n: float,
+    gravity_m_s2: float,
+    stroke_m: float,
+) -> float:
+    """Most stroke [m] any leg law leaves under a hemi it stops from ``touchdown_speed_m_s``
+    (along the legs) within ``force_max_n``: ``s - v^2 / (2 (F / m - g))``, the stop at
+    the cap all the way. Negative: no stroke of ``stroke_m`` stops it within the cap.
+
+    The lowest mass comes down to at most this height above the ground: a step higher
+    than it whose edge the hemi meets while it stops strikes the body, whatever the legs
+    do (README "Random jumps", the step range)."""
+    if not (hemi_mass_kg > 0.0 and force_max_n > hemi_mass_kg * gravity_m_s2):
+        raise ValueError(
+            f"force_max_n {force_max_n!r} must hold the hemi's weight "
+            f"({hemi_mass_kg!r} kg at {gravity_m_s2!r} m/s^2)"
+        )
+    deceleration = force_max_n / hemi_mass_kg - gravity_m_s2  # [m/s^2]
+    return stroke_m - touchdown_speed_m_s * touchdown_speed_m_s / (2.0 * deceleration)
+
+
 def leg_stance_force(
     compression_m: float,
     velocity_world_m_s: tuple[float, float, float],
