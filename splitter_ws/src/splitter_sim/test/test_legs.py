@@ -79,6 +79,12 @@ def test_the_whole_stroke_stop_is_the_force_that_stops_at_the_stroke_end() -> No
     # left (besides the reserve) takes 9 (1.62 + 0.25 / 0.02) = 127.1 N, the damper 115.2 N.
     assert leg_normal_force(0.38, -0.5, LEGS) == pytest.approx(40.0 * 0.38 + 100.0)
     assert leg_normal_force(0.38, -0.5, STOP) == pytest.approx(9.0 * (1.62 + 0.25 / 0.02))
+    # From rest it grows in over STOP_BLEND_SPEED_M_S (0.1 m/s): continuous at v = 0, so
+    # a hemi at rest is held by the law above, not by the nominal hemi's weight.
+    assert full_stroke_stop_force(0.3, -0.01, STOP) == pytest.approx(
+        0.1 * 9.0 * (1.62 + 0.0001 / 0.18)
+    )
+    assert full_stroke_stop_force(0.3, -1e-9, STOP) < 1e-6
     # No stroke left: the cap; going up, or off: nothing of its own.
     assert full_stroke_stop_force(0.395, -0.1, STOP) == STOP.force_max_n
     assert full_stroke_stop_force(0.3, 0.5, STOP) == 0.0

@@ -406,14 +406,14 @@ def test_thrust_through_one_hemi_spins_the_robot() -> None:
 
 
 def _lunar_drop(
-    compliant_legs: bool, speed_m_s: float = 3.0, **legs: bool
+    compliant_legs: bool, speed_m_s: float = 3.0, model: RobotModel = MODEL, **legs: bool
 ) -> tuple[SimConfig, list]:
     """Level, the lowest masses 0.45 m above the ground, ``speed_m_s`` down; 10 s of states."""
     config = SimConfig(gravity_m_s2=1.62, compliant_legs=compliant_legs, **legs)
-    probe = Simulator(MODEL, config, InitialState(position_m=(0.0, 0.0, 10.0)))
+    probe = Simulator(model, config, InitialState(position_m=(0.0, 0.0, 10.0)))
     lowest = float(probe.state().mass_positions_world_m[:, 2].min()) - 10.0  # [m] from the COM
     sim = Simulator(
-        MODEL,
+        model,
         config,
         InitialState(position_m=(0.0, 0.0, 0.45 - lowest), velocity_m_s=(0.0, 0.0, -speed_m_s)),
     )
@@ -468,6 +468,29 @@ def test_the_legs_spend_their_whole_stroke_on_a_touchdown_the_damper_cannot_stop
     _, damper = _lunar_drop(compliant_legs=True, speed_m_s=3.88, leg_full_stroke_stop=False)
     assert min(float(s.mass_positions_world_m[:, 2].min()) for s in damper) < 0.0
     assert max(float(np.linalg.norm(s.contact_force_n, axis=1).max()) for s in damper) > 196.0
+
+
+@pytest.mark.parametrize("mass_scale", [0.94, 1.06])
+def test_a_robot_not_the_nominal_one_comes_to_rest_on_the_whole_stroke_legs(
+    mass_scale: float,
+) -> None:
+    """The whole-stroke stop computes with the nominal 9 kg hemi. At rest it must not hold
+    that weight against the robot's own (it once switched on and off with the sign of the
+    speed: 12.3 / 14.7 N, and the gait never saw the robot at rest)."""
+    model = replace(
+        MODEL,
+        body_mass_kg=MODEL.body_mass_kg * mass_scale,
+        limb_mass_y_kg=MODEL.limb_mass_y_kg * mass_scale,
+        limb_mass_z_kg=MODEL.limb_mass_z_kg * mass_scale,
+    )
+    config, states = _lunar_drop(compliant_legs=True, model=model)
+    assert config.leg_full_stroke_stop
+    last = states[-int(2.0 / DT) :]  # the last 2 s, at rest
+    force = np.array([s.contact_force_n[:, 2] for s in last])  # [N] per hemi
+    weight = model.total_mass_kg * config.gravity_m_s2  # [N]
+    assert np.ptp(force, axis=0).max() < 0.05
+    np.testing.assert_allclose(force[-1], [weight / 2, weight / 2], rtol=0.01)
+    assert max(abs(float(s.velocity_m_s[2])) for s in last) < 0.01  # [m/s] the spring settles
 
 
 @pytest.mark.parametrize("speed_m_s", [3.0, 3.63])

@@ -83,6 +83,11 @@ from dataclasses import dataclass
 # faster than the first speed, wholly from the second (a touchdown; a crouch is slower)
 LANDING_SPEED_M_S = (0.5, 1.0)
 _LANDING_BLEND = LANDING_SPEED_M_S[1] - LANDING_SPEED_M_S[0]
+# [m/s] the whole-stroke stop grows in from rest to this speed coming down. At rest it
+# would hold the nominal hemi's weight, not the robot's, and switch on and off with the
+# sign of the speed: a lighter hemi chattered (12.3 / 14.7 N, +-0.07 m/s^2 at the
+# accelerometer), so the gait never saw the robot at rest and never declared LANDED.
+STOP_BLEND_SPEED_M_S = 0.1
 # [-] a crouching hemi's legs carry at least this share of its weight: it sinks at no
 # more than half of g (0.18 m in 0.67 s on the Moon) and its feet stay on the ground
 CROUCH_LOAD_FRACTION = 0.5
@@ -208,16 +213,17 @@ def full_stroke_stop_force(
     compression_m: float, velocity_along_m_s: float, legs: LegImpedance
 ) -> float:
     """Force [N] that stops a hemi coming down at ``-velocity_along_m_s`` [m/s] at the
-    end of the stroke (less the reserve): ``m (g + v^2 / (2 d))``, or ``force_max_n``
-    with no stroke left; 0 going up or with ``stop_mass_kg`` 0 (module docstring,
-    "The whole stroke")."""
+    end of the stroke (less the reserve): ``m (g + v^2 / (2 d))``, scaled in from rest
+    up to ``STOP_BLEND_SPEED_M_S``, or ``force_max_n`` with no stroke left; 0 going up or
+    with ``stop_mass_kg`` 0 (module docstring, "The whole stroke")."""
     if legs.stop_mass_kg == 0.0 or velocity_along_m_s >= 0.0:
         return 0.0
     left = legs.stroke_m - legs.stop_reserve_m - compression_m
     if left <= 0.0:
         return legs.force_max_n
     speed = -velocity_along_m_s
-    return legs.stop_mass_kg * (legs.stop_gravity_m_s2 + speed * speed / (2.0 * left))
+    stop = legs.stop_mass_kg * (legs.stop_gravity_m_s2 + speed * speed / (2.0 * left))
+    return stop * min(speed / STOP_BLEND_SPEED_M_S, 1.0)
 
 
 def stroke_left_after_stop_m(
