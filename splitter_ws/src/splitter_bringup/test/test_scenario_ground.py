@@ -21,6 +21,7 @@ from splitter_bringup.analysis.jump_campaign import (
     scenario_for_jump_draw,
     tether_tilt_deg,
 )
+from splitter_bringup.run.library import run_closed_loop
 from splitter_bringup.scenario.definition import ScenarioError, load_scenario, scenario_dir
 from splitter_bringup.scenario.graph_config import simulator_parameters
 from splitter_bringup.scenario.simulation import sim_config
@@ -184,3 +185,36 @@ def test_success_against_a_factor_leaves_out_the_draws_without_it() -> None:
     _, rate, counts = binned_success(results, "mpc", "step_edge_m", bins=2)
     assert counts.sum() == len(stepped)
     assert np.nansum(rate * counts) == 3  # the three successes among the stepped draws
+
+
+def _first_touchdown_speed_m_s(tmp_path: Path, ground: dict | None) -> float:
+    """The fastest a hemi comes down [m/s] at its first touchdown after lunar_jumping's
+    launch (open loop, the first flight only), over ``ground``."""
+    doc = yaml.safe_load((scenario_dir() / "lunar_jumping.yaml").read_text())
+    doc["duration_s"] = 6.0
+    doc["jumps"] = doc["jumps"][:1]
+    if ground is not None:
+        doc["ground"] = ground
+    path = tmp_path / f"launch_{len(list(tmp_path.iterdir()))}.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    series = run_closed_loop(load_scenario(path, "open_loop"))
+    force = np.linalg.norm(np.asarray(series.extras["contact_force_n"]), axis=2)
+    velocity = np.asarray(series.velocity_m_s)
+    t = np.asarray(series.t_s)
+    flying = np.where(force.max(axis=1) < 1.0)[0]
+    assert len(flying) > 0 and t[flying[0]] < 1.0  # it leaves the ground
+    after = np.where((force.max(axis=1) > 1.0) & (np.arange(len(t)) > flying[0]))[0]
+    assert len(after) > 0  # and comes down within the run
+    return float(-velocity[after[0] - 1, 2])
+
+
+def test_a_launch_down_a_slope_meets_it_no_faster_than_level_ground(tmp_path: Path) -> None:
+    """The gait scales a downhill launch (splitter_mpc.core.gait.downhill_speed_scale):
+    down 6 deg along the hop the drop adds ~0.4 m/s, which the 0.4 m stroke of a
+    nominal 3.6 m/s touchdown (0.34 m used) does not have."""
+    level = _first_touchdown_speed_m_s(tmp_path, None)
+    downhill = _first_touchdown_speed_m_s(tmp_path, {"slope_deg": 6.0, "slope_azimuth_deg": 180.0})
+    uphill = _first_touchdown_speed_m_s(tmp_path, {"slope_deg": 6.0, "slope_azimuth_deg": 0.0})
+    assert 3.0 < level < 4.0
+    assert downhill < level + 0.08
+    assert uphill < level

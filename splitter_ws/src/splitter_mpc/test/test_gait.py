@@ -22,6 +22,7 @@ from splitter_mpc.core.gait import (
     LandingTiming,
     PlannedJump,
     attitude_reference_at_stamp,
+    downhill_speed_scale,
     gait_config_from_parameters,
     jump_plan_from_arrays,
     jump_wrench,
@@ -29,6 +30,7 @@ from splitter_mpc.core.gait import (
     predicted_touchdown_s,
     propagate_attitude,
     quaternion_multiply,
+    scaled_jump,
     smallest_rotation,
     spin_couple_n,
     timed_landing_plan,
@@ -1106,3 +1108,98 @@ def test_nothing_to_time_without_a_tilted_momentum_or_time() -> None:
     assert timed_landing_reference(tilted, spin, inertia, 0.0) is None
     assert timed_landing_reference(tilted, spin, inertia, math.inf) is None
     assert timed_landing_reference(tilted, spin, inertia, 3.0, rate_max_rad_s=math.inf)
+
+
+# --- downhill jumps ---------------------------------------------------------------------------
+def _plane_normal(slope_deg: float, rise_azimuth_deg: float) -> np.ndarray:
+    """Upward unit normal of a plane rising towards ``rise_azimuth_deg`` (from world x)."""
+    s, a = math.radians(slope_deg), math.radians(rise_azimuth_deg)
+    return np.array([-math.sin(s) * math.cos(a), -math.sin(s) * math.sin(a), math.cos(s)])
+
+
+def _vertical_speed_at_the_plane(v0: np.ndarray, normal: np.ndarray, g: float) -> float:
+    """|v_z| where a ballistic flight from the plane's point at ``v0`` meets it again
+    (root of n . (v0 t - g t^2 z / 2), found numerically)."""
+    t = np.linspace(1e-3, 20.0, 200_001)
+    height = (normal @ v0) * t - 0.5 * g * normal[2] * t * t
+    crossing = int(np.argmax(height < 0.0))
+    assert crossing > 0
+    return abs(v0[2] - g * t[crossing])
+
+
+@pytest.mark.parametrize("slope_deg", [3.0, 6.0, 10.0])
+@pytest.mark.parametrize("heading_deg", [0.0, 30.0, 70.0])
+def test_a_downhill_jump_meets_the_plane_no_faster_than_level_ground(
+    slope_deg: float, heading_deg: float
+) -> None:
+    g = MOON_G
+    h = math.radians(heading_deg)
+    force = np.array([160.0 * math.cos(h), 160.0 * math.sin(h), 350.0])  # [N] whole thrust
+    launch = force / TOTAL_MASS_KG - np.array([0.0, 0.0, g])  # [m/s^2] from rest
+    v0 = launch / np.linalg.norm(launch) * 3.9  # [m/s] the lift-off velocity, along it
+    downhill = _plane_normal(slope_deg, 180.0)  # falls towards +x
+    level = _vertical_speed_at_the_plane(v0, np.array([0.0, 0.0, 1.0]), g)
+    unscaled = _vertical_speed_at_the_plane(v0, downhill, g)
+    scale = downhill_speed_scale(force, downhill, TOTAL_MASS_KG, g)
+    scaled = _vertical_speed_at_the_plane(scale * v0, downhill, g)
+    assert level == pytest.approx(v0[2], abs=1e-3)
+    assert unscaled > level + 0.1 * math.cos(h)  # the plane's drop: faster
+    assert scaled == pytest.approx(level, abs=2e-3)
+    assert scale < 1.0
+
+
+@pytest.mark.parametrize(
+    ("normal", "force"),
+    [
+        ((0.0, 0.0, 1.0), (160.0, 0.0, 350.0)),  # level
+        (tuple(_plane_normal(6.0, 0.0)), (160.0, 0.0, 350.0)),  # uphill
+        (tuple(_plane_normal(6.0, 90.0)), (160.0, 0.0, 350.0)),  # across
+        (tuple(_plane_normal(6.0, 180.0)), (160.0, 0.0, 20.0)),  # cannot lift the weight
+        (tuple(_plane_normal(0.5, 180.0)), (160.0, 0.0, 350.0)),  # below the level slope
+    ],
+)
+def test_a_jump_that_does_not_head_downhill_is_not_scaled(normal, force) -> None:
+    assert downhill_speed_scale(force, normal, TOTAL_MASS_KG, MOON_G, 1.0) == 1.0
+
+
+def test_a_scaled_jump_keeps_its_direction_and_its_weight() -> None:
+    weight = TOTAL_MASS_KG * MOON_G  # [N]
+    both = PlannedJump(0, (80.0, 40.0, 180.0), 600 * MS, "both", (70.0, -45.0, 175.0), 3.0)
+    scaled = scaled_jump(both, 0.9, weight)
+    for before, after in ((both.force_n, scaled.force_n), (both.force_b_n, scaled.force_b_n)):
+        lift_before = np.asarray(before) - [0.0, 0.0, weight / 2]
+        lift_after = np.asarray(after) - [0.0, 0.0, weight / 2]
+        np.testing.assert_allclose(lift_after, 0.81 * lift_before, rtol=1e-12)
+    assert scaled.couple_n == both.couple_n and scaled.time_ns == both.time_ns
+    single = jump(0.0, "a", force=(60.0, 0.0, 100.0))
+    lift = np.asarray(scaled_jump(single, 0.5, weight).force_n) - [0.0, 0.0, weight]
+    np.testing.assert_allclose(lift, 0.25 * (np.asarray(single.force_n) - [0.0, 0.0, weight]))
+    assert scaled_jump(single, 1.0, weight) is single
+
+
+def test_the_machine_scales_a_jump_from_a_downhill_stance_only() -> None:
+    force = (160.0, 0.0, 350.0)  # [N] heading +x
+    planned = jump(0.0, "auto", 0.6, force)
+    on_slope = quaternion_multiply(IDENTITY, axis_angle((0.0, 1.0, 0.0), math.radians(6.0)))
+    normal = quaternion_to_matrix(on_slope)[:, 2]  # body z: tilted towards +x, falls there
+    expected = downhill_speed_scale(force, normal, TOTAL_MASS_KG, MOON_G, 1.0)
+    assert expected < 0.95
+    for q, scale in ((IDENTITY, 1.0), (on_slope, expected)):
+        machine = GaitPhaseMachine(GaitConfig(jumps=(planned,)), MOON_G, TOTAL_MASS_KG)
+        out = tick(machine, 0, normal=(STANCE_N, STANCE_N), orientation=q)
+        assert out.thrusting and out.jump_speed_scale == pytest.approx(scale)
+        weight = np.array([0.0, 0.0, TOTAL_MASS_KG * MOON_G])
+        np.testing.assert_allclose(
+            out.jump_force_n - weight, scale**2 * (np.asarray(force) - weight), atol=1e-9
+        )
+    flat = GaitPhaseMachine(GaitConfig(jumps=(planned,), jump_level_slope_deg=90.0), MOON_G)
+    out = tick(flat, 0, normal=(STANCE_N, STANCE_N), orientation=on_slope)
+    assert out.jump_speed_scale == 1.0
+    np.testing.assert_allclose(out.jump_force_n, force)
+
+
+def test_a_bad_level_slope_or_mass_is_refused_naming_it() -> None:
+    with pytest.raises(ValueError, match="jump_level_slope_deg"):
+        GaitConfig(jump_level_slope_deg=math.nan)
+    with pytest.raises(ValueError, match="mass_kg"):
+        GaitPhaseMachine(GaitConfig(), MOON_G, -1.0)

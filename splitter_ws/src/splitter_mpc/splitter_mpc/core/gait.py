@@ -40,6 +40,13 @@ is an error. Each change is reported once, on its tick, with its reason
   running hop). A push from legs still in their landing stroke, or from a robot
   still turning, would launch the next flight with the landing's speed and spin in
   it.
+* Downhill jumps. A standing robot's belly axis (body z, from the measured attitude)
+  is the ground's normal. A jump that heads downhill a plane steeper than
+  ``jump_level_slope_deg`` falls further than it rose and meets the ground faster
+  than it left; its push is scaled (:func:`downhill_speed_scale`,
+  :func:`scaled_jump`) so that it meets the plane no faster than on level ground,
+  the speed the legs' stroke is sized for. The forward speed a running hop carries
+  is not counted.
 * Landing (paper: "towards Landing, SPLITTER de-thrusts the system, and the
   attitude controller slows down the angular velocity"): once every planned jump
   is done and the centre of mass descends, the phase is LANDING; the attitude
@@ -70,7 +77,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any, Protocol
 
@@ -513,6 +520,63 @@ def predicted_touchdown_s(
     return (v + math.sqrt(v * v + 2.0 * g * above)) / g
 
 
+def downhill_speed_scale(
+    force_n: ArrayLike,
+    ground_normal: ArrayLike,
+    mass_kg: float,
+    gravity_m_s2: float,
+    level_slope_deg: float = 0.0,
+) -> float:
+    """The factor (0, 1] on a push's lift-off speed that meets a downhill plane no faster
+    than the same push meets level ground.
+
+    A push of ``force_n`` [N] (world, the whole thrust) on ``mass_kg`` [kg] from rest
+    launches along ``a = F / m - g z``. Over a plane through the start with upward unit
+    normal ``n``, a ballistic flight leaving at ``v`` is above it until
+    ``t = 2 (n . v) / (g n_z)``, where its vertical speed is ``v_z - 2 (n . v) / n_z``:
+    ``-v_z`` on level ground, ``k = 1 + 2 (n_h . v_h) / (n_z v_z)`` times that when the
+    push heads downhill (``n_h``, ``v_h`` the horizontal parts). The factor is ``1 / k``
+    there and 1 otherwise (uphill, across, a push that does not lift, or a slope below
+    ``level_slope_deg`` [deg]). The legs stop a touchdown within their stroke only up
+    to a speed (:func:`splitter_sim.core.legs.stroke_left_after_stop_m`); a 6 deg slope
+    down a 10 m hop adds 1 m of fall, 0.3-0.4 m/s at the nominal 3.6 m/s.
+    """
+    normal = _unit3(ground_normal, "ground_normal")
+    if not (math.isfinite(mass_kg) and mass_kg > 0.0):
+        raise ValueError(f"mass_kg: must be finite and > 0, got {mass_kg}")
+    if not (math.isfinite(gravity_m_s2) and gravity_m_s2 >= 0.0):
+        raise ValueError(f"gravity_m_s2: must be finite and >= 0, got {gravity_m_s2}")
+    launch = _vector3(force_n, "force_n") / mass_kg - np.array([0.0, 0.0, gravity_m_s2])
+    slope_deg = math.degrees(math.acos(min(1.0, abs(float(normal[2])))))
+    if gravity_m_s2 == 0.0 or normal[2] <= 0.0 or launch[2] <= 0.0 or slope_deg < level_slope_deg:
+        return 1.0
+    downhill = float(normal[0] * launch[0] + normal[1] * launch[1])  # n_h . v_h, same scale
+    ratio = 1.0 + 2.0 * downhill / (float(normal[2]) * float(launch[2]))
+    return 1.0 / ratio if ratio > 1.0 else 1.0
+
+
+def scaled_jump(jump: PlannedJump, speed_scale: float, weight_n: float) -> PlannedJump:
+    """``jump`` with its lift-off speed scaled by ``speed_scale`` (direction kept).
+
+    A push over the legs' stroke from rest leaves at ``|v| = sqrt(2 |a| d)`` along
+    ``a = (F - W) / m``, so the speed scales by ``s`` when the force above the weight
+    ``W`` (``weight_n`` [N], the whole robot's, along world z) scales by ``s^2``: each
+    hemi's force becomes ``W_h + s^2 (F_h - W_h)`` with ``W_h`` its share of the weight
+    (half each for "both"). The couple across the tether is kept.
+    """
+    if speed_scale == 1.0:
+        return jump
+    factor = speed_scale * speed_scale
+
+    def scale(force: tuple[float, float, float], share: float) -> tuple[float, float, float]:
+        w = weight_n * share
+        return (factor * force[0], factor * force[1], w + factor * (force[2] - w))
+
+    if jump.hemi == "both":
+        return replace(jump, force_n=scale(jump.force_n, 0.5), force_b_n=scale(jump.force_b_n, 0.5))
+    return replace(jump, force_n=scale(jump.force_n, 1.0))
+
+
 # --- the jump plan -------------------------------------------------------------------------
 class JumpLike(Protocol):
     """Anything shaped like ``splitter_bringup.scenario.definition.JumpSpec``."""
@@ -745,6 +809,13 @@ class GaitConfig:
         bounds=(1e-4, 10.0),
         live=True,
     )
+    jump_level_slope_deg: float = parameter_field(
+        1.0,
+        "ground flatter than this under a standing robot (its measured belly axis) is "
+        "level; on a steeper one a jump heading downhill is scaled to meet the plane no "
+        "faster than it would meet level ground (90: never scale) [deg]",
+        bounds=(0.0, 90.0),
+    )
     w_ref_rad_s: tuple[float, float, float] = parameter_field(
         (0.0, 1.0, 0.0), "flight angular velocity reference, base frame [rad/s]", length=3
     )
@@ -814,6 +885,7 @@ class GaitConfig:
             "landed_dwell_s",
             "touchdown_height_m",
             "stance_lead_s",
+            "jump_level_slope_deg",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -922,6 +994,7 @@ class GaitOutput:
     reason: str = ""  # why the phase changed, on the tick it changed
     touchdown_in_s: float = math.inf  # [s] predicted time to the next touchdown (inf: none)
     stance_shape: bool = False  # the limbs are legs: on the ground or touchdown within the lead
+    jump_speed_scale: float = 1.0  # the running thrust's lift-off speed factor (downhill < 1)
 
     @property
     def thrusting(self) -> bool:
@@ -934,19 +1007,29 @@ class _Thrust:
     index: int
     hemi: str
     end_ns: int
+    jump: PlannedJump  # as pushed: the plan's, scaled for a downhill slope
+    speed_scale: float = 1.0
 
 
 # --- the machine -----------------------------------------------------------------------------
 class GaitPhaseMachine:
     """Deterministic gait phase state machine; call :meth:`update` once per control tick.
 
-    ``gravity_m_s2`` [m/s^2] predicts the touchdown (:func:`predicted_touchdown_s`).
+    ``gravity_m_s2`` [m/s^2] predicts the touchdown (:func:`predicted_touchdown_s`);
+    with ``mass_kg`` [kg] (default: the nominal :class:`RobotModel`'s) it scales a
+    downhill jump (:func:`downhill_speed_scale`).
     """
 
-    def __init__(self, config: GaitConfig, gravity_m_s2: float = 0.0) -> None:
+    def __init__(
+        self, config: GaitConfig, gravity_m_s2: float = 0.0, mass_kg: float | None = None
+    ) -> None:
         if not (math.isfinite(gravity_m_s2) and gravity_m_s2 >= 0.0):
             raise ValueError(f"gravity_m_s2: must be finite and >= 0, got {gravity_m_s2}")
+        mass = RobotModel().total_mass_kg if mass_kg is None else float(mass_kg)
+        if not (math.isfinite(mass) and mass > 0.0):
+            raise ValueError(f"mass_kg: must be finite and > 0, got {mass_kg}")
         self.gravity_m_s2 = float(gravity_m_s2)
+        self.mass_kg = mass  # [kg] the robot's, as the gait's model has it
         self.config = config
         self._phase: GaitPhase | None = None
         self._phase_since_ns = 0
@@ -1058,7 +1141,26 @@ class GaitPhaseMachine:
                     _LOG.debug(
                         "jump %d starts at t = %d ns through hemi %s", self._next_jump, t_ns, hemi
                     )
-                    self._thrust = _Thrust(self._next_jump, hemi, t_ns + jump.duration_ns)
+                    speed_scale = downhill_speed_scale(
+                        jump.total_force_n,
+                        rotation_matrix(q)[:, 2],
+                        self.mass_kg,
+                        self.gravity_m_s2,
+                        cfg.jump_level_slope_deg,
+                    )
+                    if speed_scale < 1.0:
+                        _LOG.info(
+                            "jump %d heads downhill: lift-off speed scaled by %.3f",
+                            self._next_jump,
+                            speed_scale,
+                        )
+                    self._thrust = _Thrust(
+                        self._next_jump,
+                        hemi,
+                        t_ns + jump.duration_ns,
+                        scaled_jump(jump, speed_scale, self.mass_kg * self.gravity_m_s2),
+                        speed_scale,
+                    )
                     self._next_jump += 1
 
         phase, reason = self._next_phase(t_ns, stance, velocity, rate, contact_event)
@@ -1124,8 +1226,7 @@ class GaitPhaseMachine:
         if reference is not None:
             self._reference = reference
         if self._thrust is not None:
-            jump = cfg.jumps[self._thrust.index]
-            force, torque = _split_jump_wrench(jump, q, radius_x, self._thrust.hemi)
+            force, torque = _split_jump_wrench(self._thrust.jump, q, radius_x, self._thrust.hemi)
             pushing: str | None = self._thrust.hemi
         else:
             force, torque, pushing = np.zeros(3), np.zeros(3), None
@@ -1148,6 +1249,7 @@ class GaitPhaseMachine:
             or (float(velocity[2]) < 0.0 and touchdown_in_s <= cfg.stance_lead_s),
             on_ground=self._on_ground,
             reason=reason if changed else "",
+            jump_speed_scale=self._thrust.speed_scale if self._thrust is not None else 1.0,
         )
 
     # -- internals -------------------------------------------------------------------------
