@@ -78,6 +78,8 @@ PLAN = [
     Parameter("jump_durations_s", value=[0.1, 0.1]),
     Parameter("jump_hemis", value=["b", "auto"]),
     Parameter("landed_dwell_s", value=0.1),
+    # the synthetic body stands pitched 10 deg: no downhill scaling of the plan's pushes
+    Parameter("jump_level_slope_deg", value=90.0),
     Parameter("w_ref_rad_s", value=[0.0, 1.0, 0.0]),
     Parameter("gravity_m_s2", value=G_M_S2),
 ]

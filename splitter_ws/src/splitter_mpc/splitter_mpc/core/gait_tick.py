@@ -341,6 +341,7 @@ class GaitTick:
                 "hemi_a_height_m": output.hemi_height_m[0],
                 "hemi_b_height_m": output.hemi_height_m[1],
                 "jump_force_z_n": float(output.jump_force_n[2]),
+                "jump_speed_scale": output.jump_speed_scale,
                 "touchdown_in_s": min(output.touchdown_in_s, 1e9),
                 "stance_shape": output.stance_shape,
             }
