@@ -41,3 +41,12 @@ def test_back_ends_side_by_side_in_one_run() -> None:
     with pytest.raises(ValueError, match="unknown back-end"):
         parse_backend("fatrop/elsewhere")
     assert parse_backend("sqp/in-process") == ("sqp", False)
+
+
+def test_the_condensed_sqp_flies_the_turn_as_the_baseline_does_in_its_own_process() -> None:
+    """The first second of the turn holds its hardest re-plans (15-25 SQP iterations)."""
+    result = run_benchmark("condensed_sqp/in-process", duration_s=1.0, compile_code=False)
+    assert (result["solver"], result["in_process"]) == ("condensed_sqp", True)
+    assert result["n_solves"] == 10 and result["failed_solves"] == 0
+    assert result["max_abs_w_diff"] <= 0.01
+    assert result["median_iterations"] > 1  # it iterates to convergence, not one RTI step

@@ -38,6 +38,7 @@ DEFAULT_BACKENDS = (
     f"ipopt{IN_PROCESS}",
     f"sqp{IN_PROCESS}",
     f"rti{IN_PROCESS}",
+    f"condensed_sqp{IN_PROCESS}",
 )
 
 
@@ -48,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--solver",
         action="append",
         default=None,
-        help="back-end, NAME or NAME/in-process (NAME: fatrop, ipopt, sqp, rti; repeatable; "
+        help="back-end, NAME or NAME/in-process (NAME: fatrop, ipopt, sqp, rti, condensed_sqp; "
+        "repeatable; "
         f"default: {' '.join(DEFAULT_BACKENDS)})",
     )
     parser.add_argument("--scenario", default="spin_stabilization", help="flight scenario")

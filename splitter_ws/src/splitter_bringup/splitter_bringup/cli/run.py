@@ -39,7 +39,7 @@ from splitter_bringup.scenario.definition import (
 )
 from splitter_model.terrain import FLAT, Terrain
 
-SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti")
+SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti", "condensed_sqp")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

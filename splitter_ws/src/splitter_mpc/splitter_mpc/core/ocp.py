@@ -393,6 +393,7 @@ class MorphingOcp:
     equality: list[bool]
     gap_next_minus_f: bool
     state: StateLayout
+    integrator: str = "euler"  # F's scheme (:data:`INTEGRATORS`)
 
     @property
     def n_z(self) -> int:
@@ -435,6 +436,16 @@ class MorphingOcp:
     def inertia_map(self) -> NDArray[np.float64]:
         """M with ``I = M s`` (the reachable set's map, eq. 2)."""
         return self.limits.reachable.inertia_map
+
+    def dynamics(self) -> ca.Function:
+        """F(x, u): the prediction model the gaps are written with."""
+        return dynamics_function(self.dt_s, self.inertia_map, self.integrator, self.state)
+
+    @property
+    def tension_rows(self) -> NDArray[np.intp]:
+        """Rows of the tension constraints of stages 1..N-1 in ``g`` (stage 0's is free)."""
+        nx = self.state.nx
+        return np.array([k * (nx + NG_PATH) + nx for k in range(1, self.horizon)], dtype=np.intp)
 
     def state_from_measurement(
         self,
@@ -642,6 +653,7 @@ def build_ocp(
         equality=([True] * nx + [False] * NG_PATH) * horizon,
         gap_next_minus_f=gap_next_minus_f,
         state=state,
+        integrator=integrator,
     )
 
 

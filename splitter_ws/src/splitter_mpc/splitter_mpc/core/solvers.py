@@ -13,6 +13,10 @@
   constraint curvature, so on this large-residual problem it converges only
   linearly: kept for comparison (``splitter bench mpc``), not the default.
 * ``rti``: the real-time iteration, ``sqp`` capped at one iteration per re-plan.
+* ``condensed_sqp``: Gauss-Newton SQP over the controls alone, a dense QP per
+  iteration (DAQP), a line search on an exact-penalty merit and an iteration
+  cap: bounded by construction, so it needs no worker process
+  (:mod:`.condensed_sqp`).
 
 For ``ipopt`` and ``fatrop`` the objective is scaled as IPOPT's gradient-based
 scaling does (``nlp_scaling_max_gradient``, ``nlp_scaling_min_value``): by
@@ -48,7 +52,7 @@ from splitter_mpc.core.ocp import MorphingOcp
 from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
-SOLVERS = ("fatrop", "ipopt", "sqp", "rti")
+SOLVERS = ("fatrop", "ipopt", "sqp", "rti", "condensed_sqp")
 _GN_REGULARISATION = 1e-8  # added to the Gauss-Newton Hessian (states without a cost)
 OBJECTIVE_GRADIENT_MAX = 100.0  # IPOPT's nlp_scaling_max_gradient
 OBJECTIVE_SCALE_MIN = 1e-8  # IPOPT's nlp_scaling_min_value: a wild start is not scaled to 0
@@ -453,4 +457,8 @@ def make_backend(name: str, ocp: MorphingOcp, options: SolverOptions):
         return SqpBackend(ocp, options, max_iter=1)
     if name in ("ipopt", "fatrop"):
         return NlpBackend(ocp, name, options)
+    if name == "condensed_sqp":
+        from splitter_mpc.core.condensed_sqp import CondensedSqpBackend  # imports this module
+
+        return CondensedSqpBackend(ocp, options)
     raise ValueError(f"unknown solver {name!r}; use one of {SOLVERS}")
