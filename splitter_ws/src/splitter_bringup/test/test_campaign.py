@@ -347,3 +347,33 @@ def test_hemi_bodies_are_boxes_drawn_after_everything_else(tmp_path) -> None:
     path.write_text(yaml.safe_dump(scenario_document(base, b, 8.0, errors), sort_keys=False))
     loaded = load_scenario(path, "mpc")
     assert loaded.robot_errors == errors and loaded.estimator == flown.estimator
+
+
+@pytest.mark.slow
+def test_a_campaign_flies_the_solver_asked_for_and_replays_with_it(tmp_path) -> None:
+    import shlex
+
+    from splitter_bringup.analysis.campaign import scenario_for_draw
+    from splitter_bringup.run.campaign import campaign_mpc, fly_draw
+    from splitter_bringup.scenario.definition import load_scenario
+    from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S
+
+    assert campaign_mpc(None) is None  # the library's default MPC
+    settings = campaign_mpc("condensed_sqp")
+    assert settings.solver == "condensed_sqp"
+    assert settings.options.max_time_s == LOCKSTEP_MAX_TIME_S
+    out = tmp_path / "campaign"
+    args = ["campaign", "spin_stabilization", "--draws", "1", "--seed", "2", "--duration", "1.0"]
+    args += ["--solver", "condensed_sqp", "--workers", "1", "--no-plots", "--out", str(out)]
+    assert splitter(args) == 0
+    document = json.loads((out / "campaign.json").read_text())
+    assert document["solver"] == "condensed_sqp"
+    words = shlex.split(document["per_draw"][0]["replay"])
+    assert words[words.index("--solver") + 1] == "condensed_sqp"
+    # the same draw flown with each back-end: the same optimum, other iteration counts
+    scenario = scenario_for_draw(load_scenario("spin_stabilization", "mpc"), make_draw(0, 5), 1.0)
+    condensed = fly_draw(scenario, make_draw(0, 5), solver="condensed_sqp")
+    fatrop = fly_draw(scenario, make_draw(0, 5))
+    assert np.max(np.abs(condensed.angular_velocity_rad_s - fatrop.angular_velocity_rad_s)) < 0.01
+    iterations = (np.nanmax(s.extras["mpc_iterations"]) for s in (condensed, fatrop))
+    assert next(iterations) < next(iterations)  # SQP steps against interior-point iterations

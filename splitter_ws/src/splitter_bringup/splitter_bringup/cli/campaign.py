@@ -64,6 +64,7 @@ from splitter_bringup.analysis.fault_draws import FAULT_TIME_MAX_S
 from splitter_bringup.analysis.jump_campaign import JumpRanges
 from splitter_bringup.run.campaign import fly_draw, run_on_dask
 from splitter_bringup.scenario.definition import Scenario, ScenarioError, load_scenario
+from splitter_mpc.core.solvers import SOLVERS
 
 # the value a perturbation flag given without one takes
 DEFAULT_MASS_FRACTION = 0.1  # [-] +-10 %
@@ -90,6 +91,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--variant", default=None, help="scenario variant (default: mpc, else the first)"
+    )
+    parser.add_argument(
+        "--solver",
+        choices=SOLVERS,
+        default=None,
+        help="MPC back-end the draws fly (default: the MPC's default, fatrop)",
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="local Dask workers (default: all cores)"
@@ -293,6 +300,8 @@ def replay_command(args: argparse.Namespace, variant: str, out: Path, seed: int)
     """The command that flies the draw of ``seed`` alone, with the campaign's settings."""
     words = ["splitter", "campaign", str(args.scenario), "--variant", variant]
     words += ["--replay", str(seed)]
+    if args.solver is not None:
+        words += ["--solver", args.solver]
     if args.duration is not None:
         words += ["--duration", repr(args.duration)]
     words += ["--w-min", repr(args.w_min), "--w-max", repr(args.w_max)]
@@ -383,9 +392,10 @@ def main(args: argparse.Namespace) -> int:
     jobs = [(scenario_for_draw(base, d, args.duration), d) for d in draws]
     started = time.monotonic()
     if args.replay is None:
-        results, cluster = run_on_dask(jobs, spec, args.workers, args.scheduler)
+        results, cluster = run_on_dask(jobs, spec, args.workers, args.scheduler, args.solver)
     else:
-        results, cluster = [_replay(jobs[0], spec, out, args.no_plots)], {"replay": True}
+        results = [_replay(jobs[0], spec, out, args.no_plots, args.solver)]
+        cluster = {"replay": True}
     wall = time.monotonic() - started
     write_csv(results, out / "draws.csv")
     summary = summarize(results).as_dict()
@@ -410,6 +420,7 @@ def main(args: argparse.Namespace) -> int:
     document = {
         "scenario": base.name,
         "variant": variant,
+        "solver": args.solver or "default",
         "command": campaign_command(),
         "seed": args.seed,
         "duration_s": jobs[0][0].duration_s,
@@ -436,11 +447,17 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _replay(job: tuple[Scenario, Draw], spec: PerturbationSpec, out: Path, no_plots: bool):
+def _replay(
+    job: tuple[Scenario, Draw],
+    spec: PerturbationSpec,
+    out: Path,
+    no_plots: bool,
+    solver: str | None = None,
+):
     """Fly one draw here; keep its series and flight figure beside the campaign files."""
     scenario, draw = job
     started = time.monotonic()
-    series = fly_draw(scenario, draw, spec)
+    series = fly_draw(scenario, draw, spec, solver)
     result = draw_result(draw, series, time.monotonic() - started)
     series.save_npz(out / "replay.npz")
     if not no_plots:

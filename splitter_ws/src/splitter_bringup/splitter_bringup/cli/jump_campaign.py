@@ -82,6 +82,8 @@ def replay_command(args: argparse.Namespace, out: Path, seed: int) -> str:
     words = ["splitter", "campaign", str(args.scenario), "--replay", str(seed)]
     if args.variant is not None:
         words += ["--variant", args.variant]
+    if getattr(args, "solver", None) is not None:
+        words += ["--solver", args.solver]
     ranges = ranges_from_args(args)
     words += ["--push-fraction", repr(ranges.push_fraction)]
     words += ["--push-tilt", repr(ranges.push_tilt_deg)]
@@ -130,9 +132,10 @@ def main(args: argparse.Namespace) -> int:
     name = Path(args.scenario).stem
     out: Path = args.out or Path("runs") / "campaign" / f"{name}_seed{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
+    solver = getattr(args, "solver", None)
     started = time.monotonic()
     if args.replay is None:
-        tasks = [(f"draw-{d.index}-{d.seed}", (variants, d)) for d in draws]
+        tasks = [(f"draw-{d.index}-{d.seed}", (variants, d, solver)) for d in draws]
         results, cluster = map_on_dask(
             run_jump_draw,
             tasks,
@@ -141,7 +144,10 @@ def main(args: argparse.Namespace) -> int:
             args.scheduler,
         )
     else:
-        results, cluster = [run_jump_draw(variants, draws[0])], {"replay": True}
+        results, cluster = (
+            [run_jump_draw(variants, draws[0], solver)],
+            {"replay": True},
+        )
     wall = time.monotonic() - started
     names = list(variants)
     write_jump_csv(results, names, out / "draws.csv")
@@ -164,6 +170,7 @@ def main(args: argparse.Namespace) -> int:
     document = {
         "scenario": base.name,
         "variants": names,
+        "solver": solver or "default",
         "command": shlex.join(["splitter", *sys.argv[1:]]),
         "seed": args.seed,
         "duration_s": base.duration_s,

@@ -28,6 +28,8 @@ from splitter_bringup.analysis.campaign import (
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.backends import LIBRARY, run
 from splitter_bringup.scenario.definition import Scenario
+from splitter_mpc.core.mpc import MpcSettings
+from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 
 _LOG = logging.getLogger(__name__)
 R = TypeVar("R")
@@ -38,8 +40,19 @@ FORWARDED_ENV_PREFIXES = ("SPLITTER_",)
 FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
 
 
+def campaign_mpc(solver: str | None) -> MpcSettings | None:
+    """The MPC settings a campaign flies: the library's default (None) or ``solver``'s,
+    with the library loop's lockstep deadline (a slow solve is waited for)."""
+    if solver is None:
+        return None
+    return MpcSettings(solver=solver, options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
+
+
 def fly_draw(
-    scenario: Scenario, draw: Draw, perturbation: PerturbationSpec | None = None
+    scenario: Scenario,
+    draw: Draw,
+    perturbation: PerturbationSpec | None = None,
+    solver: str | None = None,
 ) -> RunSeries:
     """The :class:`~splitter_bringup.analysis.series.RunSeries` of a draw's flight.
 
@@ -50,7 +63,7 @@ def fly_draw(
     (:func:`estimator_for_draw`). The library backend
     (:func:`splitter_bringup.run.backends.run`): the closed loop with the scenario's MPC,
     a fresh controller and solver worker, so that a draw never depends on the ones flown
-    before it.
+    before it. ``solver``: the MPC back-end (None: the default one).
     """
     spec = perturbation or PerturbationSpec()
     flown = replace(
@@ -60,13 +73,16 @@ def fly_draw(
     )
     if spec.estimator:
         flown = estimator_for_draw(flown, draw)
-    return run(flown, LIBRARY, estimator=None if spec.estimator else False)
+    return run(
+        flown, LIBRARY, estimator=None if spec.estimator else False, mpc=campaign_mpc(solver)
+    )
 
 
 def run_draw(
     scenario: Scenario,
     draw: Draw,
     perturbation: PerturbationSpec | None = None,
+    solver: str | None = None,
 ) -> DrawResult:
     """Fly a draw (:func:`fly_draw`) and classify it: what a campaign worker runs.
 
@@ -74,7 +90,7 @@ def run_draw(
     """
     started = time.monotonic()
     try:
-        series = fly_draw(scenario, draw, perturbation)
+        series = fly_draw(scenario, draw, perturbation, solver)
     except Exception as exc:  # a failing draw is a result, not a crash of the campaign
         _LOG.warning("draw %d (seed %d) raised: %s", draw.index, draw.seed, exc)
         return error_result(draw, repr(exc), time.monotonic() - started)
@@ -154,9 +170,13 @@ def run_on_dask(
     spec: PerturbationSpec,
     workers: int | None = None,
     scheduler: str | None = None,
+    solver: str | None = None,
 ) -> tuple[list[DrawResult], dict[str, Any]]:
     """Every draw as a Dask task; (results in draw order, a description of the cluster)."""
-    tasks = [(f"draw-{draw.index}-{draw.seed}", (scenario, draw, spec)) for scenario, draw in jobs]
+    tasks = [
+        (f"draw-{draw.index}-{draw.seed}", (scenario, draw, spec, solver))
+        for scenario, draw in jobs
+    ]
     draws = [draw for _, draw in jobs]
 
     def failed(k: int, exc: Exception) -> DrawResult:

@@ -22,25 +22,29 @@ from splitter_bringup.analysis.jump_campaign import (
 )
 from splitter_bringup.analysis.series import RunSeries
 from splitter_bringup.run.backends import LIBRARY, run
+from splitter_bringup.run.campaign import campaign_mpc
 from splitter_bringup.scenario.definition import Scenario
 
 _LOG = logging.getLogger(__name__)
 
 
-def fly_jump_draw(base: Scenario, draw: JumpDraw) -> RunSeries:
+def fly_jump_draw(base: Scenario, draw: JumpDraw, solver: str | None = None) -> RunSeries:
     """The library closed loop of one variant (``base``) in the draw's world: a fresh
-    controller and solver worker, the controllers on the flight estimator."""
-    return run(scenario_for_jump_draw(base, draw), LIBRARY)
+    controller and solver worker, the controllers on the flight estimator; ``solver``:
+    the MPC back-end (None: the default one)."""
+    return run(scenario_for_jump_draw(base, draw), LIBRARY, mpc=campaign_mpc(solver))
 
 
-def run_jump_draw(variants: Mapping[str, Scenario], draw: JumpDraw) -> JumpDrawResult:
+def run_jump_draw(
+    variants: Mapping[str, Scenario], draw: JumpDraw, solver: str | None = None
+) -> JumpDrawResult:
     """Fly the draw with every variant and judge each flight; never raises (an exception
     is that variant's ``error`` outcome)."""
     started = time.monotonic()
     outcomes: dict[str, LandingOutcome] = {}
     for name, base in variants.items():
         try:
-            series = fly_jump_draw(base, draw)
+            series = fly_jump_draw(base, draw, solver)
             outcomes[name] = classify_landing(
                 series, scenario_for_jump_draw(base, draw), base.leg_cone_half_angle_deg
             )

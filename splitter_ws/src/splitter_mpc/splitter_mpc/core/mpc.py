@@ -117,6 +117,7 @@ from splitter_mpc.core.solver_worker import (
     non_finite_fields,
 )
 from splitter_mpc.core.solvers import (
+    BOUNDED_SOLVERS,
     SOLVERS,
     Closable,
     ProblemInstance,
@@ -302,8 +303,10 @@ class InertialMorphingMpc(Closable):
 
     With ``settings.options.isolated`` the back-end is a
     :class:`~splitter_mpc.core.solver_worker.SolverWorker`: every solve ends within
-    ``max_time_s`` of wall time whatever the solver does. Call :meth:`close` (or use
-    the object as a context manager) to stop the worker.
+    ``max_time_s`` of wall time whatever the solver does. A back-end bounded by
+    construction (:data:`~splitter_mpc.core.solvers.BOUNDED_SOLVERS`) needs none and
+    is always solved in this process. Call :meth:`close` (or use the object as a
+    context manager) to stop the worker.
     """
 
     def __init__(
@@ -396,7 +399,9 @@ class InertialMorphingMpc(Closable):
 
     def _build_backend(self):
         s = self.settings
-        if s.options.isolated:
+        if s.options.isolated and s.solver in BOUNDED_SOLVERS:
+            _LOG.info("%s is bounded by construction: solved in this process", s.solver)
+        elif s.options.isolated:
             return SolverWorker(
                 partial(build_backend, self.model, s),
                 s.options.max_time_s,

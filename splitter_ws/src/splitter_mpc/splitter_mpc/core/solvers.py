@@ -53,6 +53,9 @@ from splitter_msgs_py.core.parameter_fields import parameter_field
 
 _LOG = logging.getLogger(__name__)
 SOLVERS = ("fatrop", "ipopt", "sqp", "rti", "condensed_sqp")
+# back-ends whose every loop is capped (iterations, line search, QP) and whose code
+# has no native solver that can freeze: they need no worker process to be bounded
+BOUNDED_SOLVERS = ("condensed_sqp",)
 _GN_REGULARISATION = 1e-8  # added to the Gauss-Newton Hessian (states without a cost)
 OBJECTIVE_GRADIENT_MAX = 100.0  # IPOPT's nlp_scaling_max_gradient
 OBJECTIVE_SCALE_MIN = 1e-8  # IPOPT's nlp_scaling_min_value: a wild start is not scaled to 0
