@@ -57,6 +57,11 @@ _INFINITE_BOUND = 1e30  # DAQP's infinity
 _DAQP_OPTIMAL = (1, 2)  # exit flags: optimal, optimal with a soft constraint
 MAX_BACKTRACKS = 10  # [-] halvings of a step per iteration (smallest step 2^-9)
 QP_MAX_ITER = 1000  # [-] active-set iterations per QP (measured: p99 ~140 cold, 1 warm)
+# [-] DAQP's feasibility tolerance. Its default (1e-6) lets a step cross a radius bound
+# by up to 1e-6, which the merit's penalty (mu ~ 300) then prices above the step's whole
+# decrease near the optimum: the line search failed on the first iteration of ~1 % of
+# the re-plans of a tumble campaign.
+QP_PRIMAL_TOL = 1e-10
 
 
 def condensed_functions(ocp: MorphingOcp) -> tuple[ca.Function, ca.Function]:
@@ -186,7 +191,6 @@ class CondensedSqpBackend:
         self._u_rows = np.concatenate([_range(ocp.u_index(k)) for k in range(n)])
         self._x_rows = np.concatenate([_range(ocp.x_index(k)) for k in range(1, n + 1)])
         self._x0_rows = _range(ocp.x_index(0))
-        self._penalty = 1.0  # mu of the merit, kept between solves (it only grows)
 
     def _bounds(self, data: ProblemInstance) -> tuple[NDArray, ...]:
         """(lbv, ubv, lbc, ubc, bounded): the controls' bounds and the bounded constraints'."""
@@ -218,12 +222,40 @@ class CondensedSqpBackend:
         lam_g[self.ocp.tension_rows] = lam_c[self._x_rows.size :]
         return lam_g, lam_z
 
+    def feasible_start(self, data: ProblemInstance) -> NDArray[np.float64]:
+        """The warm start's controls, made to keep every radius within its bounds.
+
+        ``s_{k+1} = s_k + ds_k`` exactly, so each ``ds_k`` is clipped to its rate bound
+        and to what keeps ``s_{k+1}`` within the state bounds (both contain 0 while
+        ``s_k`` is within its own): from a measured state the shifted plan can leave
+        them, and an iterate that starts outside may start where the rollout is not
+        finite. Every later iterate keeps these linear bounds (the QP's step does, and
+        so does any share of it).
+        """
+        n, nx = self.ocp.horizon, self.ocp.state.nx
+        radii = self.ocp.state.radii_sq
+        rate_lo = data.lbz[self._u_rows].reshape(n, NU)[:, 0:3]
+        rate_hi = data.ubz[self._u_rows].reshape(n, NU)[:, 0:3]
+        controls = np.clip(data.z0[self._u_rows], data.lbz[self._u_rows], data.ubz[self._u_rows])
+        controls = controls.reshape(n, NU)
+        state_lo = data.lbz[self._x_rows].reshape(n, nx)[:, radii]
+        state_hi = data.ubz[self._x_rows].reshape(n, nx)[:, radii]
+        s = data.lbz[self._x0_rows][radii]
+        for k in range(n):
+            # outside its bounds (never, from the MPC's projection) a radius heads back
+            # at its top rate
+            low = np.maximum(rate_lo[k], np.minimum(state_lo[k] - s, rate_hi[k]))
+            high = np.minimum(rate_hi[k], np.maximum(state_hi[k] - s, rate_lo[k]))
+            controls[k, 0:3] = np.clip(controls[k, 0:3], low, high)
+            s = s + controls[k, 0:3]
+        return controls.ravel()
+
     def solve(self, data: ProblemInstance) -> SolverResult:
         started = time.perf_counter()
         opts = self.options
         x0 = data.lbz[self._x0_rows]
         lbv, ubv, lbc, ubc, bounded = self._bounds(data)
-        v = np.clip(data.z0[self._u_rows], lbv, ubv)
+        v = self.feasible_start(data)
 
         def violation(c: NDArray) -> float:
             return float(np.sum(np.maximum(lbc - c, 0.0) + np.maximum(c - ubc, 0.0)))
@@ -234,9 +266,14 @@ class CondensedSqpBackend:
 
         regularisation = _GN_REGULARISATION * np.eye(v.size)
         duals = self._duals_in(data, bounded)
-        status, converged, iterations = "max_iter", False, 0
+        status, converged, iterations, steps = "max_iter", False, 0, 0
+        penalty = 1.0  # mu of the merit: above every multiplier of this solve's QPs
         f_now, viol_now = merit(v)
-        for iterations in range(1, opts.max_iter + 1):  # noqa: B007 (used after the loop)
+        start_finite = math.isfinite(f_now + viol_now)
+        if not start_finite:
+            status = "non_finite_start"
+        cap = opts.max_iter if start_finite else 0
+        for iterations in range(1, cap + 1):  # noqa: B007 (used after the loop)
             jac_r, grad, c, jac_c = self._data(v, x0, data.p)
             c = c[bounded]
             step, _, flag, info = daqp.solve(
@@ -247,18 +284,22 @@ class CondensedSqpBackend:
                 np.maximum(np.concatenate([lbv - v, lbc - c]), -_INFINITE_BOUND),
                 dual_start=duals,
                 iter_limit=QP_MAX_ITER,
+                primal_tol=QP_PRIMAL_TOL,
             )
-            if flag not in _DAQP_OPTIMAL or not np.all(np.isfinite(step)):
+            lam = np.asarray(info["lam"], dtype=float)
+            if flag not in _DAQP_OPTIMAL or not (
+                np.all(np.isfinite(step)) and np.all(np.isfinite(lam))
+            ):
                 status = f"qp_failed({flag})"
                 break
-            duals = np.asarray(info["lam"], dtype=float)
-            self._penalty = max(self._penalty, _MERIT_GROWTH * float(np.max(np.abs(duals))))
-            phi = f_now + self._penalty * viol_now
-            slope = float(grad @ step) - self._penalty * viol_now  # the merit's along the step
+            duals = lam
+            penalty = max(penalty, _MERIT_GROWTH * float(np.max(np.abs(duals), initial=0.0)))
+            phi = f_now + penalty * viol_now
+            slope = float(grad @ step) - penalty * viol_now  # the merit's along the step
             alpha = 1.0
             for _ in range(MAX_BACKTRACKS):
                 f_try, viol_try = merit(v + alpha * step)
-                if f_try + self._penalty * viol_try <= phi + _ARMIJO * alpha * slope:
+                if f_try + penalty * viol_try <= phi + _ARMIJO * alpha * slope:
                     break
                 alpha *= 0.5
             else:
@@ -266,6 +307,7 @@ class CondensedSqpBackend:
                 break
             v = v + alpha * step
             f_now, viol_now = f_try, viol_try
+            steps += 1
             if np.max(np.abs(alpha * step) / (1.0 + np.abs(v))) <= opts.tol:
                 status, converged = "converged", True
                 break
@@ -286,7 +328,8 @@ class CondensedSqpBackend:
             lam_z=lam_z,
             status=status,
             converged=converged,
-            usable=finite and infeasibility <= opts.usable_infeasibility,
+            # a failure before any step leaves the warm start: not a plan of this solve
+            usable=finite and infeasibility <= opts.usable_infeasibility and steps > 0,
             iterations=iterations,
             solve_time_s=time.perf_counter() - started,
             cost=cost,
