@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import replace
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -19,7 +20,7 @@ from splitter_mpc.core.mpc import (
     settings_for_weights,
 )
 from splitter_mpc.core.ocp import MpcWeights
-from splitter_mpc.core.solvers import SOLVERS, SolverOptions, make_backend
+from splitter_mpc.core.solvers import SOLVERS, ProblemInstance, SolverOptions, make_backend
 
 MODEL = RobotModel()
 WEIGHTS = MpcWeights(objective="momentum")
@@ -124,3 +125,53 @@ def test_the_buffered_function_returns_what_a_plain_call_does() -> None:
     sparse = ca.Function("g", [x], [ca.diag(x)])
     with pytest.raises(ValueError, match="dense"):
         BufferedFunction(sparse)
+
+
+def test_a_warm_start_that_leaves_the_radius_bounds_is_brought_back_within(
+    problem, condensed
+) -> None:
+    data, _ = problem
+    ocp = condensed.ocp
+    radii = ocp.state.radii_sq
+    # every radius pushed outward at its top rate: the rollout soon crosses r_max
+    pushed = data.z0.copy()
+    for k in range(ocp.horizon):
+        rows = ocp.u_index(k)
+        pushed[rows.start : rows.start + 3] = data.ubz[rows.start : rows.start + 3]
+    start = condensed.feasible_start(replace(data, z0=pushed)).reshape(ocp.horizon, -1)
+    s = data.lbz[ocp.x_index(0)][radii] + np.cumsum(start[:, 0:3], axis=0)
+    s_max = np.array([data.ubz[ocp.x_index(k)][radii] for k in range(1, ocp.horizon + 1)])
+    unclipped = data.lbz[ocp.x_index(0)][radii] + np.cumsum(
+        pushed[condensed._u_rows].reshape(ocp.horizon, -1)[:, 0:3], axis=0
+    )
+    assert np.any(unclipped > s_max)  # the pushed warm start leaves them
+    assert np.all(s <= s_max + 1e-12)
+    assert np.max(s - s_max) > -1e-9  # it still goes as far out as the bounds allow
+    # a feasible warm start (its own plan) is kept as it is
+    plan = condensed.solve(data).z
+    np.testing.assert_allclose(
+        condensed.feasible_start(replace(data, z0=plan)), plan[condensed._u_rows], atol=1e-12
+    )
+
+
+def test_a_solve_from_its_own_optimum_stays_there(problem, condensed) -> None:
+    """Near the optimum a step crossing a bound by DAQP's default 1e-6 cost more merit
+    than it gained: the line search failed (1 % of a campaign's re-plans)."""
+    data, _ = problem
+    first = condensed.solve(data)
+    again = condensed.solve(replace(data, z0=first.z, lam_g0=first.lam_g, lam_z0=first.lam_z))
+    assert again.usable and again.converged, again.status
+    assert again.iterations <= 3
+    assert again.cost <= first.cost + 1e-9 * abs(first.cost)
+
+
+def test_a_re_plan_near_its_optimum_takes_its_step(condensed) -> None:
+    """A stored re-plan of a campaign tumble (seed 1210734248 at 2.6 s) whose warm start is
+    within 5e-5 of the optimum: with DAQP's default feasibility tolerance (1e-6) the step
+    crossed a radius bound by 8e-7, which the merit priced above the step's decrease, and
+    the line search failed at its first iteration (the previous plan was executed)."""
+    stored = np.load(Path(__file__).parent / "data" / "condensed_sqp_near_optimum.npz")
+    data = ProblemInstance(**{name: stored[name] for name in stored.files})
+    result = condensed.solve(data)
+    assert result.usable and result.converged, result.status
+    assert result.infeasibility <= 1e-9
