@@ -186,21 +186,24 @@ def plot_solve_times(
 
     ``runs`` maps a controller's name to its closed loop (``extras`` ``mpc_solve_time_ms``
     and ``mpc_iterations``, NaN between re-plans); ``budget_ms`` draws the time goal.
-    The third panel is each run's largest |w_i| difference to the first run.
+    The third panel is each run's largest |w_i| difference to the first run. A run has
+    one colour in every panel.
     """
     fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
     reference = next(iter(runs.values()))
-    for label, series in runs.items():
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (label, series) in enumerate(runs.items()):
+        colour = colours[k % len(colours)]
         times = np.asarray(series.extras["mpc_solve_time_ms"], dtype=float)
         iterations = np.asarray(series.extras["mpc_iterations"], dtype=float)
         replans = np.isfinite(times)
-        axes[0].semilogy(series.t_s[replans], times[replans], ".-", label=label)
-        axes[1].plot(series.t_s[replans], iterations[replans], ".-", label=label)
+        axes[0].semilogy(series.t_s[replans], times[replans], ".-", color=colour, label=label)
+        axes[1].plot(series.t_s[replans], iterations[replans], ".-", color=colour, label=label)
         if series is not reference:
             diff = np.max(
                 np.abs(series.angular_velocity_rad_s - reference.angular_velocity_rad_s), 1
             )
-            axes[2].semilogy(series.t_s, np.maximum(diff, 1e-12), label=label)
+            axes[2].semilogy(series.t_s, np.maximum(diff, 1e-12), color=colour, label=label)
     if budget_ms is not None:
         axes[0].axhline(budget_ms, color="k", linestyle="--", linewidth=1, label="goal (p99)")
     axes[0].set_ylabel("solve time [ms]")
