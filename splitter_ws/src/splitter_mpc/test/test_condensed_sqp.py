@@ -175,3 +175,20 @@ def test_a_re_plan_near_its_optimum_takes_its_step(condensed) -> None:
     result = condensed.solve(data)
     assert result.usable and result.converged, result.status
     assert result.infeasibility <= 1e-9
+
+
+def test_a_bounded_back_end_is_solved_in_the_controllers_process() -> None:
+    from splitter_mpc.core.solver_worker import SolverWorker
+    from splitter_mpc.core.solvers import BOUNDED_SOLVERS
+
+    assert BOUNDED_SOLVERS == ("condensed_sqp",)  # fatrop can freeze (casadi#3857): not it
+    isolated = replace(
+        _settings("condensed_sqp"),
+        options=SolverOptions(compile=False, max_time_s=30.0, isolated=True),
+    )
+    with InertialMorphingMpc(MODEL, isolated) as mpc:
+        assert isinstance(mpc.backend, CondensedSqpBackend)
+        assert mpc.deadline_misses == 0
+    fatrop = replace(isolated, solver="fatrop")
+    with InertialMorphingMpc(MODEL, fatrop) as mpc:
+        assert isinstance(mpc.backend, SolverWorker)
