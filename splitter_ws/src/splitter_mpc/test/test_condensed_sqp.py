@@ -11,7 +11,11 @@ import numpy as np
 import pytest
 
 from splitter_model.model import PAPER_INITIAL_RADII_M, RobotModel, principal_inertia
-from splitter_mpc.core.condensed_sqp import BufferedFunction, CondensedSqpBackend
+from splitter_mpc.core.condensed_sqp import (
+    BufferedFunction,
+    CondensedSqpBackend,
+    interior_point_qp,
+)
 from splitter_mpc.core.mpc import (
     MOMENTUM_MPC_SETTINGS,
     InertialMorphingMpc,
@@ -192,3 +196,51 @@ def test_a_bounded_back_end_is_solved_in_the_controllers_process() -> None:
     fatrop = replace(isolated, solver="fatrop")
     with InertialMorphingMpc(MODEL, fatrop) as mpc:
         assert isinstance(mpc.backend, SolverWorker)
+
+
+def test_the_interior_point_fallback_solves_daqps_qp_form_alike() -> None:
+    import daqp
+
+    rng = np.random.default_rng(3)
+    n, m = 12, 8
+    factor = rng.normal(size=(n, n))
+    hessian = factor @ factor.T + np.eye(n)
+    gradient = rng.normal(size=n) * 5.0
+    rows = rng.normal(size=(m, n))
+    upper = np.concatenate([np.full(n, 0.3), np.full(m, 0.5)])
+    lower = np.concatenate([np.full(n, -0.3), np.full(m, -1e30)])  # rows: upper only
+    upper[2] = 1e30  # one variable unbounded above
+    x_ref, _, flag, info = daqp.solve(hessian, gradient, rows, upper, lower)
+    assert flag == 1
+    x, lam, solved = interior_point_qp(hessian, gradient, rows, upper, lower)
+    assert solved
+    np.testing.assert_allclose(x, x_ref, atol=1e-7)
+    active = np.abs(info["lam"]) > 1e-9
+    assert np.any(active)
+    np.testing.assert_array_equal(np.sign(lam[active]), np.sign(info["lam"][active]))
+    np.testing.assert_allclose(lam, info["lam"], atol=1e-6)
+
+
+def test_a_degenerate_qp_on_which_daqp_cycles_is_solved_by_the_fallback(monkeypatch) -> None:
+    """A stored re-plan of lunar_jumping_robot_errors (50 Euler steps of 10 ms, a slow
+    spin): a tension row and its slack's bound active together, DAQP cycles (exit -2)."""
+    import splitter_mpc.core.condensed_sqp as condensed_module
+    from splitter_mpc.core.mpc import MpcSettings
+
+    stored = np.load(Path(__file__).parent / "data" / "condensed_sqp_degenerate_lunar.npz")
+    data = ProblemInstance(**{name: stored[name] for name in stored.files})
+    options = SolverOptions(compile=False, max_time_s=30.0, isolated=False)
+    settings = replace(
+        settings_for_weights(MpcSettings(), MpcWeights()), solver="condensed_sqp", options=options
+    )
+    _, ocp = morphing_problem(MODEL, settings)
+    backend = make_backend("condensed_sqp", ocp, options)
+    result = backend.solve(data)
+    assert result.usable and result.converged, result.status
+    assert backend.fallback_solves >= 1
+    # without the fallback the same re-plan fails: DAQP alone cycles on it
+    monkeypatch.setattr(
+        condensed_module, "interior_point_qp", lambda *qp: (np.zeros(1), np.zeros(1), False)
+    )
+    alone = make_backend("condensed_sqp", ocp, options).solve(data)
+    assert not alone.usable and alone.status.startswith("qp_failed(daqp -2")
