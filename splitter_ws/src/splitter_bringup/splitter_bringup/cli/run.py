@@ -38,8 +38,7 @@ from splitter_bringup.scenario.definition import (
     load_scenario,
 )
 from splitter_model.terrain import FLAT, Terrain
-
-SOLVER_CHOICES = ("fatrop", "ipopt", "sqp", "rti", "condensed_sqp")
+from splitter_mpc.core.solvers import SOLVERS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -68,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(default: one process per node)",
     )
     parser.add_argument(
-        "--solver", choices=SOLVER_CHOICES, default=None, help="MPC solver (library backend)"
+        "--solver", choices=SOLVERS, default=None, help="MPC solver (library backend)"
     )
     parser.add_argument(
         "--no-compile", action="store_true", help="MPC without compiled code (library backend)"

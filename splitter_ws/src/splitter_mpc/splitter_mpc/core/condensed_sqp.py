@@ -72,8 +72,8 @@ QP_PRIMAL_TOL = 1e-10
 def condensed_functions(ocp: MorphingOcp) -> tuple[ca.Function, ca.Function]:
     """(data, merit) of the condensed problem, as MX functions of ``(v, x_0, p)``.
 
-    ``data`` -> residuals r, dense J_r, the gradient of the objective, the
-    constraint values c (states x_1..x_N, tension rows 1..N-1) and dense dc/dv.
+    ``data`` -> the residuals' Jacobian J_r, the gradient of the objective, the
+    constraint values c (states x_1..x_N, tension rows 1..N-1) and dc/dv, all dense.
     ``merit`` -> objective, c and the multiple-shooting decision vector z(v).
     """
     n, nx = ocp.horizon, ocp.state.nx
