@@ -80,10 +80,25 @@ def test_bad_scenario_names_the_field(tmp_path) -> None:
         ("fault_effort_scale", "0"),
         ("fault_effort_scale", "1.5"),
         ("fault_effort_scale", ".nan"),
+        ("solver", "nope"),
     ):
         bad.write_text(f"duration_s: 1\ncontroller:\n  {field}: {value}\n")
         with pytest.raises(ScenarioError, match=field):
             load_scenario(bad)
+
+
+def test_a_scenario_names_the_mpc_back_end_the_graph_and_the_library_fly(tmp_path) -> None:
+    from splitter_bringup.run.library import controller_config
+    from splitter_bringup.scenario.graph_config import mpc_parameters
+
+    assert load_scenario("spin_stabilization").controller.solver == "fatrop"
+    path = tmp_path / "condensed.yaml"
+    path.write_text("duration_s: 1\ncontroller: {solver: condensed_sqp}\n")
+    scenario = load_scenario(path)
+    assert scenario.controller.solver == "condensed_sqp"
+    assert mpc_parameters(scenario)["solver"] == "condensed_sqp"
+    assert mpc_parameters(scenario, real_time=True)["solver"] == "condensed_sqp"
+    assert controller_config(scenario).mpc.solver == "condensed_sqp"
 
 
 def test_findings_are_comparisons_between_variants(tmp_path) -> None:

@@ -96,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--solver",
         choices=SOLVERS,
         default=None,
-        help="MPC back-end the draws fly (default: the MPC's default, fatrop)",
+        help="MPC back-end the draws fly (default: the scenario's controller.solver)",
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="local Dask workers (default: all cores)"
@@ -420,7 +420,7 @@ def main(args: argparse.Namespace) -> int:
     document = {
         "scenario": base.name,
         "variant": variant,
-        "solver": args.solver or "default",
+        "solver": args.solver or base.controller.solver,
         "command": campaign_command(),
         "seed": args.seed,
         "duration_s": jobs[0][0].duration_s,

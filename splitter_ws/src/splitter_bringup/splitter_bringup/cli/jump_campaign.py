@@ -170,7 +170,7 @@ def main(args: argparse.Namespace) -> int:
     document = {
         "scenario": base.name,
         "variants": names,
-        "solver": solver or "default",
+        "solver": solver or base.controller.solver,
         "command": shlex.join(["splitter", *sys.argv[1:]]),
         "seed": args.seed,
         "duration_s": base.duration_s,

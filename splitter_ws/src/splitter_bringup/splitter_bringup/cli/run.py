@@ -114,7 +114,7 @@ def _run_variant(args: argparse.Namespace, scenario: Scenario) -> VariantRun:
     from splitter_mpc.core.solvers import LOCKSTEP_MAX_TIME_S, SolverOptions
 
     mpc = MpcSettings(
-        solver=args.solver or MpcSettings().solver,
+        solver=args.solver or scenario.controller.solver,
         options=SolverOptions(compile=not args.no_compile, max_time_s=LOCKSTEP_MAX_TIME_S),
     )
     return run_variant(scenario, LIBRARY, mpc=mpc, progress=_progress_printer(scenario.variant))

@@ -41,8 +41,8 @@ FORWARDED_ENV = ("MPLBACKEND", "PYTHONDONTWRITEBYTECODE", "ROS_DOMAIN_ID")
 
 
 def campaign_mpc(solver: str | None) -> MpcSettings | None:
-    """The MPC settings a campaign flies: the library's default (None) or ``solver``'s,
-    with the library loop's lockstep deadline (a slow solve is waited for)."""
+    """The MPC settings a campaign flies: the scenario's (None) or ``solver``'s, with the
+    library loop's lockstep deadline (a slow solve is waited for)."""
     if solver is None:
         return None
     return MpcSettings(solver=solver, options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))

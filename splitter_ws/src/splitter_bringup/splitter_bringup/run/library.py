@@ -90,14 +90,15 @@ def controller_config(
 
     The scenario fixes the formulation (objective, horizon, prediction step,
     integrator, the step the weights are given for);
-    ``mpc`` brings the solver, its options and the hardware margins. With
+    ``mpc`` brings the solver, its options and the hardware margins (None: the
+    scenario's ``controller.solver`` with the lockstep deadline). With
     ``knows_robot`` (None: when the controllers fly on the estimator, as the graph's
     do) the MPC expects the robot's actuator lag.
     """
     c = scenario.controller
     weights = MpcWeights(q_w=c.q_w, r=c.r, q_t=c.q_t, q_q=c.q_q, q_tq=c.q_tq, objective=c.objective)
     if mpc is None:
-        mpc = MpcSettings(options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
+        mpc = MpcSettings(solver=c.solver, options=SolverOptions(max_time_s=LOCKSTEP_MAX_TIME_S))
     formulation = replace(
         mpc,
         horizon=c.horizon,

@@ -35,6 +35,7 @@ from splitter_model.terrain import FLAT, Step, Terrain
 from splitter_mpc.core.estimator import EstimatorConfig
 from splitter_mpc.core.gait import ATTITUDE_REFERENCE_MODES, GaitConfig
 from splitter_mpc.core.ocp import INTEGRATORS, OBJECTIVES
+from splitter_mpc.core.solvers import SOLVERS
 from splitter_msgs_py.core.parameter_fields import parameter_fields
 from splitter_sim.core.robot_errors import RobotErrors
 from splitter_sim.core.simulator import SimConfig
@@ -110,6 +111,9 @@ class ControllerSpec:
     recovery_momentum_ratio_max: float | None = None
     # [-] after a fault, the effort weights R times this (ControllerConfig)
     fault_effort_scale: float = 0.01
+    # the MPC's numerical back-end (splitter_mpc.core.solvers.SOLVERS) in the graph and
+    # the library loop; `splitter run --solver` and `splitter campaign --solver` override it
+    solver: str = "fatrop"
 
 
 @dataclass(frozen=True)
@@ -486,6 +490,7 @@ CONTROLLER_FIELDS = (
     "recovery_spin_rad_s",
     "recovery_momentum_ratio_max",
     "fault_effort_scale",
+    "solver",
 )
 
 
@@ -602,6 +607,7 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
             else _positive(ctrl, "recovery_momentum_ratio_max")
         ),
         fault_effort_scale=_positive(ctrl, "fault_effort_scale", 0.01),
+        solver=str(ctrl.get("solver", "fatrop")),
     )
     if not 1.0e-3 <= controller.fault_effort_scale <= 1.0:
         raise ScenarioError(
@@ -618,6 +624,8 @@ def _from_dict(d: dict[str, Any], variant: str, variants: tuple[str, ...], stem:
         raise ScenarioError(f"controller.objective: use one of {OBJECTIVES}")
     if controller.integrator not in INTEGRATORS:
         raise ScenarioError(f"controller.integrator: use one of {INTEGRATORS}")
+    if controller.solver not in SOLVERS:
+        raise ScenarioError(f"controller.solver: use one of {SOLVERS}")
     if controller.attitude_reference not in ATTITUDE_REFERENCE_MODES:
         raise ScenarioError(f"controller.attitude_reference: use one of {ATTITUDE_REFERENCE_MODES}")
     jumps = _jumps(d.get("jumps"))

@@ -190,6 +190,7 @@ def mpc_parameters(scenario: Scenario, real_time: bool = False) -> dict:
             1.0e9 if c.recovery_momentum_ratio_max is None else float(c.recovery_momentum_ratio_max)
         ),
         "fault_effort_scale": float(c.fault_effort_scale),
+        "solver": c.solver,
     }
 
 
